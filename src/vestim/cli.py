@@ -1,0 +1,115 @@
+"""Command-line interface: ``vestim maneuvers | simulate | demo``.
+
+Errors a user can fix (bad option, unknown maneuver, invalid vehicle file)
+print one clear line and exit with status 2, never a traceback.
+"""
+
+from __future__ import annotations
+
+import time
+from pathlib import Path
+from typing import Annotated
+
+import typer
+from rich.console import Console
+from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
+from rich.table import Table
+
+from vestim.errors import VestimError
+from vestim.io import load_vehicle, write_log
+from vestim.report.plots import plot_simulation, save_figure
+from vestim.sim import DEFAULT_SET, SensorModel, get_maneuver, maneuver_names, simulate
+from vestim.sim.maneuvers import Maneuver, describe
+
+app = typer.Typer(add_completion=False, no_args_is_help=True,
+                  help="Corner-based vehicle state and tire-force estimation.")
+console = Console(stderr=True)
+
+VehicleOpt = Annotated[str, typer.Option("--vehicle", help="Vehicle TOML file or built-in name "
+                                         "(hashemi_suv, compact_car).")]
+
+
+def _fail(exc: Exception) -> typer.Exit:
+    console.print(f"[red]error:[/red] {exc}")
+    return typer.Exit(code=2)
+
+
+def _run(m: Maneuver, vehicle: str, seed: int, rate: float, label: str):  # type: ignore[no-untyped-def]
+    """Simulate with a progress bar on the terminal (hidden when not interactive)."""
+    veh = load_vehicle(vehicle)
+    with Progress(TextColumn("{task.description}"), BarColumn(), TimeElapsedColumn(),
+                  console=console, transient=True, disable=not console.is_terminal) as bar:
+        task = bar.add_task(label, total=1.0)
+        log = simulate(m, veh, seed=seed, sensors=SensorModel(rate=rate),
+                       progress=lambda f: bar.update(task, completed=f))
+    return veh, log
+
+
+@app.command("maneuvers")
+def maneuvers_cmd() -> None:
+    """List the maneuver library, one per line, name first."""
+    for name in maneuver_names():
+        typer.echo(f"{name}\t{describe(name)}")
+
+
+@app.command("simulate")
+def simulate_cmd(
+    name: Annotated[str, typer.Argument(help="Maneuver name (see `vestim maneuvers`).")],
+    out: Annotated[Path, typer.Option("--out", help="Output log (.csv or .parquet).")],
+    mu: Annotated[float | None, typer.Option(help="Road friction (the maneuver's own "
+                                             "surface parameter).")] = None,
+    v0: Annotated[float | None, typer.Option(help="Initial speed, m/s.")] = None,
+    drivetrain: Annotated[str | None, typer.Option(help="awd | fwd | rwd.")] = None,
+    tire: Annotated[str | None, typer.Option(help="Tire plant: magic | lugre.")] = None,
+    tc: Annotated[bool | None, typer.Option("--tc/--no-tc", help="Traction control.")] = None,
+    abs_: Annotated[bool | None, typer.Option("--abs/--no-abs", help="ABS.")] = None,
+    vehicle: VehicleOpt = "hashemi_suv",
+    seed: Annotated[int, typer.Option(help="Sensor-noise seed.")] = 0,
+    rate: Annotated[float, typer.Option(help="Sensor sampling rate, Hz.")] = 200.0,
+) -> None:
+    """Simulate a maneuver and write a spec log with every measured and ref_ channel."""
+    try:
+        m = get_maneuver(name, mu=mu, v0=v0, drivetrain=drivetrain, tire=tire, tc=tc, abs_=abs_)
+        t0 = time.perf_counter()
+        _, log = _run(m, vehicle, seed, rate, f"simulating {name}")
+        path = write_log(log, out, metadata=log.attrs)
+    except (VestimError, ValueError, OSError) as exc:
+        raise _fail(exc) from None
+    console.print(f"wrote {path} ({len(log)} samples, {log['t'].iloc[-1]:.1f} s simulated in "
+                  f"{time.perf_counter() - t0:.2f} s)")
+
+
+@app.command("demo")
+def demo_cmd(
+    out: Annotated[Path, typer.Option("--out", help="Output folder.")] = Path("out/demo"),
+    vehicle: VehicleOpt = "hashemi_suv",
+    seed: Annotated[int, typer.Option(help="Sensor-noise seed.")] = 0,
+) -> None:
+    """Simulate the default maneuver set; write logs, overview plots and a summary table."""
+    table = Table(title=f"vestim demo: default maneuver set on {vehicle}")
+    for col in ("maneuver", "samples", "vx start→end [m/s]", "max |slip|", "min Fz [N]"):
+        table.add_column(col)
+    try:
+        for name in DEFAULT_SET:
+            m = get_maneuver(name)
+            veh, log = _run(m, vehicle, seed, 200.0, f"simulating {name}")
+            write_log(log, out / f"{name}.parquet", metadata=log.attrs)
+            fig = plot_simulation(log, veh.body.wheel_radius, title=f"{name}: {m.description}")
+            save_figure(fig, out / f"{name}.png")
+            slip = log.filter(like="ref_slip_ratio_").abs().to_numpy().max()
+            fz = log.filter(like="ref_fz_").to_numpy().min()
+            table.add_row(name, str(len(log)),
+                          f"{log['ref_vx'].iloc[0]:.1f}→{log['ref_vx'].iloc[-1]:.1f}",
+                          f"{slip:.2f}", f"{fz:.0f}")
+    except (VestimError, ValueError, OSError) as exc:
+        raise _fail(exc) from None
+    Console().print(table)
+    Console().print(f"logs (.parquet) and overview plots (.png) written to {out}/")
+
+
+def main() -> None:  # pragma: no cover - console entry point
+    app()
+
+
+if __name__ == "__main__":  # pragma: no cover
+    main()

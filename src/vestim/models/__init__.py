@@ -1,0 +1,1 @@
+"""Physics only: tire, wheel, chassis, load transfer, kinematics. Pure functions, no estimation."""

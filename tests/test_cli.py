@@ -1,0 +1,52 @@
+"""Command-line interface: listing, simulating to a file, clear errors."""
+
+from typer.testing import CliRunner
+
+from vestim.cli import app
+from vestim.io import read_log
+from vestim.io.channels import REFERENCE
+from vestim.sim import maneuver_names
+
+runner = CliRunner()
+
+
+def test_maneuvers_lists_one_per_line_name_first():
+    result = runner.invoke(app, ["maneuvers"])
+    assert result.exit_code == 0
+    names = [line.split("\t")[0] for line in result.stdout.splitlines()]
+    assert names == maneuver_names()
+
+
+def test_simulate_writes_a_readable_log_with_every_ref_channel(tmp_path):
+    out = tmp_path / "ss.parquet"
+    result = runner.invoke(app, ["simulate", "step_steer", "--tire", "lugre", "--mu", "0.8",
+                                 "--seed", "4", "--out", str(out)])
+    assert result.exit_code == 0, result.output
+    log = read_log(out, require=["measured"])
+    assert set(REFERENCE) <= set(log.columns)
+    assert (log["ref_mu_fl"] == 0.8).all()
+    assert log.attrs["maneuver"] == "step_steer" and log.attrs["tire"] == "lugre"
+
+
+def test_simulate_csv_and_vehicle_file(tmp_path):
+    out = tmp_path / "c.csv"
+    result = runner.invoke(app, ["simulate", "coast", "--vehicle", "compact_car",
+                                 "--drivetrain", "rwd", "--out", str(out)])
+    assert result.exit_code == 0, result.output
+    assert len(read_log(out)) == 2001
+
+
+def test_simulate_unknown_maneuver_is_a_clear_error(tmp_path):
+    result = runner.invoke(app, ["simulate", "nope", "--out", str(tmp_path / "x.csv")])
+    assert result.exit_code == 2
+    assert "unknown maneuver 'nope'" in result.output
+    assert "Traceback" not in result.output
+
+
+def test_simulate_bad_vehicle_file_names_the_key(tmp_path):
+    bad = tmp_path / "bad.toml"
+    bad.write_text("[vehicle]\nmass = -1\n[tire]\n")
+    result = runner.invoke(app, ["simulate", "coast", "--vehicle", str(bad),
+                                 "--out", str(tmp_path / "x.csv")])
+    assert result.exit_code == 2
+    assert "mass" in result.output
