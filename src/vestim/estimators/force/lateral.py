@@ -1,0 +1,291 @@
+"""Lateral tire forces from the handling dynamics by a UKF (001 Sec. III-B, eq. (9)–(12)).
+
+State x = [F_yf, F_yr, F̄_yf, r]: front and rear axle lateral forces (tire
+frames), the front right-minus-left difference F̄_yf = F_y,fr − F_y,fl, and the
+yaw rate. 001 eq. (10) has only the three forces (Ā = 0) and measures r; we add
+r to the state so that the yaw equation of eq. (9) is used as dynamics
+(ṙ = M_z/I_z) instead of differentiating the gyro, which at 200 Hz and
+0.003 rad/s noise gives 0.85 rad/s² of noise on ṙ. The forces are random walks.
+
+Measurements (eq. (9) with per-wheel steering instead of 001's parallel steering):
+    m f_x + F_drag = Σ_i F_xb,i,    m f_y = Σ_i F_yb,i,    r_m = r,
+with F_b,i the tire forces of corner i rotated by its steering angle, the
+longitudinal forces F_x,i from the longitudinal estimator, and f the road-frame
+specific force (IMU rotated by the body angles, :func:`normal.road_specific_force`).
+001 eq. (11) subtracts g sin(θ_v + θ_r) and g sin(φ_v + φ_r); the road-angle
+part does not belong in a force balance — the tires carry the gravity
+component along a grade or bank — so only the body angles are removed here.
+
+Corner split. The front difference F̄_yf is observable only through
+sin δ·t_f/2 in the yaw moment (rank drops at δ = 0, eq. (12)), so a weak
+pseudo-measurement F̄_yf − ρ_f F_yf = 0 (σ = ``sigma_split``) with
+ρ_f = (w_fr − w_fl)/(w_fr + w_fl) keeps it bounded and lets the yaw moment
+move it when the steering makes it observable. The rear axle force is split by
+w_rl : w_rr (no state resolves it: the rear wheels share one slip angle and the
+yaw moment sees only the axle sum). The weights are a tire's lateral capacity,
+not its normal load alone (:func:`split_weights`): w_i = F_z,i^γ · G(λ_i) with
+γ < 1 for the degressive load sensitivity of real tires' cornering stiffness,
+and G = 1/(1 + (λ_i/λ_0)²) taking the lateral force away from a wheel that
+spins or locks (combined slip), λ_i measured against the other wheels.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+from numba import njit
+
+from vestim.filters.ukf import cholesky_small, sigma_points
+
+_JIT: dict[str, Any] = {"cache": True, "error_model": "numpy"}
+
+FYF, FYR, DFYF, YAW = 0, 1, 2, 3
+N_X = 4
+N_Y = 4
+
+
+@dataclass(frozen=True)
+class LateralParams:
+    """Noise settings of the lateral-force UKF.
+
+    Attributes:
+        q_force: random-walk intensity of the axle forces, N²/s.
+        q_split: random-walk intensity of F̄_yf, N²/s.
+        q_yaw: process noise of the yaw rate, (rad/s)²/s (model error of M_z).
+        sigma_ax: one-sigma of the longitudinal balance, m/s² (IMU noise, bias, drag/pitch model).
+        sigma_ay: one-sigma of the lateral balance, m/s².
+        sigma_yaw: one-sigma of the yaw-rate measurement, rad/s (noise and bias).
+        sigma_split: one-sigma of the front-split pseudo-measurement, N.
+        load_exponent: γ of the split weights F_z^γ (1 = proportional to load).
+        slip_scale: λ_0 of the split weights: slip ratio at which a wheel's share halves.
+    """
+
+    q_force: float = 1.0e6
+    q_split: float = 1.0e6
+    q_yaw: float = 1.0e-3
+    sigma_ax: float = 0.4
+    sigma_ay: float = 0.1
+    sigma_yaw: float = 0.004
+    sigma_split: float = 800.0
+    load_exponent: float = 0.85
+    slip_scale: float = 0.1
+
+
+def split_weights(fz: np.ndarray, omega: np.ndarray, torque: np.ndarray, yaw_rate: np.ndarray,
+                  radius: float, yw: np.ndarray, load_exponent: float,
+                  slip_scale: float) -> np.ndarray:
+    """Lateral-capacity weights per corner (n, 4) for splitting axle forces (see module doc).
+
+    A wheel's slip is measured against the others: its wheel-centre speed is
+    estimated as R ω_i + r y_i (removing the yaw-rate part of the speed
+    difference between corners); a driven wheel (T ≥ 0) is compared with the
+    slowest wheel and a braked one with the fastest, λ_i = (v_i − v_ref)/max(|v_i|, |v_ref|, 1 m/s).
+    A wheel spinning or locking while another rolls has |λ_i| ≫ λ_0; when all
+    four slip alike none is singled out.
+    """
+    v = radius * omega + yaw_rate[:, None] * yw[None, :]
+    v_ref = np.where(torque >= 0.0, v.min(axis=1, keepdims=True), v.max(axis=1, keepdims=True))
+    lam = (v - v_ref) / np.maximum(np.maximum(np.abs(v), np.abs(v_ref)), 1.0)
+    return np.maximum(fz, 0.0) ** load_exponent / (1.0 + (lam / slip_scale) ** 2)
+
+
+@njit(**_JIT)
+def _body_forces(x: np.ndarray, fx: np.ndarray, cd: np.ndarray, sd: np.ndarray, rear_w: float,
+                 xw: np.ndarray, yw: np.ndarray) -> tuple[float, float, float]:
+    """(ΣF_x, ΣF_y, M_z) in the body frame for state x and tire-frame F_x per corner (001 eq. (9)).
+
+    ``cd``, ``sd``: cos and sin of each corner's steering angle (computed once per sample).
+    """
+    sx = 0.0
+    sy = 0.0
+    mz = 0.0
+    for i in range(4):
+        if i == 0:
+            fy = 0.5 * (x[FYF] - x[DFYF])
+        elif i == 1:
+            fy = 0.5 * (x[FYF] + x[DFYF])
+        elif i == 2:
+            fy = rear_w * x[FYR]
+        else:
+            fy = (1.0 - rear_w) * x[FYR]
+        fxb = fx[i] * cd[i] - fy * sd[i]
+        fyb = fx[i] * sd[i] + fy * cd[i]
+        sx += fxb
+        sy += fyb
+        mz += xw[i] * fyb - yw[i] * fxb
+    return sx, sy, mz
+
+
+@njit(**_JIT)
+def _mean(points: np.ndarray, wm: np.ndarray, out: np.ndarray) -> None:
+    out[:] = 0.0
+    for i in range(points.shape[0]):
+        for j in range(points.shape[1]):
+            out[j] += wm[i] * points[i, j]
+
+
+@njit(**_JIT)
+def _cross(a: np.ndarray, am: np.ndarray, b: np.ndarray, bm: np.ndarray, wc: np.ndarray,
+           out: np.ndarray) -> None:
+    out[:, :] = 0.0
+    for i in range(a.shape[0]):
+        for r in range(a.shape[1]):
+            da = wc[i] * (a[i, r] - am[r])
+            for c in range(b.shape[1]):
+                out[r, c] += da * (b[i, c] - bm[c])
+
+
+@njit(**_JIT)
+def lateral_kernel(t: np.ndarray, fx: np.ndarray, delta: np.ndarray, weights: np.ndarray,
+                   f_x: np.ndarray, f_y: np.ndarray, yaw_rate: np.ndarray, drag: np.ndarray,
+                   mass: float, iz: float, xw: np.ndarray, yw: np.ndarray,
+                   q: np.ndarray, r_diag: np.ndarray, wm: np.ndarray, wc: np.ndarray, tau: float,
+                   x: np.ndarray, P: np.ndarray, state: np.ndarray,
+                   fy_out: np.ndarray, sig_out: np.ndarray) -> None:
+    """Advance the lateral-force UKF over a chunk (in place on x (4,), P (4, 4), state).
+
+    Inputs per sample: fx (n, 4) tire-frame longitudinal forces, delta (n, 4)
+    road-wheel angles (rear 0), weights (n, 4) lateral-capacity weights of
+    :func:`split_weights`, f_x, f_y road-frame
+    specific force (m/s²), yaw_rate (rad/s), drag (N). ``state`` (10,) = [t_prev,
+    started, F_x (4) and δ (4) of the previous sample, held over the interval].
+    Outputs: fy_out (n, 4) tire-frame lateral force per corner, sig_out (n, 4) one-sigma.
+    """
+    n = t.shape[0]
+    npts = 2 * N_X + 1
+    pts = np.empty((npts, N_X))
+    xm = np.empty(N_X)
+    ym = np.empty(N_Y)
+    Pm = np.empty((N_X, N_X))
+    Pyy = np.empty((N_Y, N_Y))
+    Pxy = np.empty((N_X, N_Y))
+    L = np.empty((N_X, N_X))
+    Ly = np.empty((N_Y, N_Y))
+    K = np.empty((N_X, N_Y))
+    zrow = np.empty(N_Y)
+    H = np.empty((N_Y, N_X))
+    cd_now = np.empty(4)
+    sd_now = np.empty(4)
+    cd_prev = np.cos(state[6:10])
+    sd_prev = np.sin(state[6:10])
+    y = np.empty(N_Y)
+    for k in range(n):
+        wr_sum = weights[k, 2] + weights[k, 3]
+        rear_w = weights[k, 2] / wr_sum if wr_sum > 0 else 0.5
+        wf_sum = weights[k, 0] + weights[k, 1]
+        rho = (weights[k, 1] - weights[k, 0]) / wf_sum if wf_sum > 0 else 0.0
+        if state[1] == 0.0:
+            x[:] = 0.0
+            x[YAW] = yaw_rate[k]
+            P[:, :] = 0.0
+            P[FYF, FYF] = 1.0e6
+            P[FYR, FYR] = 1.0e6
+            P[DFYF, DFYF] = 1.0e5
+            P[YAW, YAW] = r_diag[2]
+            state[1] = 1.0
+        else:
+            dt = t[k] - state[0]
+            # Prediction: forces random walk, yaw rate by the yaw moment (001 eq. (9)).
+            sigma_points(x, P, tau, L, pts)
+            for i in range(npts):
+                _, _, mz = _body_forces(pts[i], state[2:6], cd_prev, sd_prev, rear_w, xw, yw)
+                pts[i, YAW] += dt * mz / iz
+            _mean(pts, wm, xm)
+            _cross(pts, xm, pts, xm, wc, Pm)
+            for j in range(N_X):
+                Pm[j, j] += q[j] * dt
+            # Update with [m f_x + drag, m f_y, r, 0]. The measurement is affine in
+            # the state, y = H x + h0, so the sigma-point sums of the update equal
+            # H P̄ Hᵀ and P̄ Hᵀ exactly; they are evaluated in that closed form.
+            for i in range(4):
+                cd_now[i] = np.cos(delta[k, i])
+                sd_now[i] = np.sin(delta[k, i])
+            H[:, :] = 0.0
+            H[0, FYF] = -0.5 * (sd_now[0] + sd_now[1])
+            H[0, DFYF] = 0.5 * (sd_now[0] - sd_now[1])
+            H[0, FYR] = -(rear_w * sd_now[2] + (1.0 - rear_w) * sd_now[3])
+            H[1, FYF] = 0.5 * (cd_now[0] + cd_now[1])
+            H[1, DFYF] = 0.5 * (cd_now[1] - cd_now[0])
+            H[1, FYR] = rear_w * cd_now[2] + (1.0 - rear_w) * cd_now[3]
+            H[2, YAW] = 1.0
+            H[3, DFYF] = 1.0
+            H[3, FYF] = -rho
+            h0x = 0.0
+            h0y = 0.0
+            for i in range(4):
+                h0x += fx[k, i] * cd_now[i]
+                h0y += fx[k, i] * sd_now[i]
+            for r in range(N_Y):
+                acc = 0.0
+                for j in range(N_X):
+                    acc += H[r, j] * xm[j]
+                ym[r] = acc
+            ym[0] += h0x
+            ym[1] += h0y
+            for r in range(N_X):  # Pxy = P̄ Hᵀ
+                for c2 in range(N_Y):
+                    acc = 0.0
+                    for j in range(N_X):
+                        acc += Pm[r, j] * H[c2, j]
+                    Pxy[r, c2] = acc
+            for r in range(N_Y):  # Pyy = H P̄ Hᵀ + R
+                for c2 in range(N_Y):
+                    acc = 0.0
+                    for j in range(N_X):
+                        acc += H[r, j] * Pxy[j, c2]
+                    Pyy[r, c2] = acc
+            for j in range(N_Y):
+                Pyy[j, j] += r_diag[j]
+            y[0] = mass * f_x[k] + drag[k] - ym[0]
+            y[1] = mass * f_y[k] - ym[1]
+            y[2] = yaw_rate[k] - ym[2]
+            y[3] = -ym[3]
+            # K = Pxy Pyy⁻¹ by Cholesky of Pyy (SPD): solve Pyy Kᵀ = Pxyᵀ.
+            cholesky_small(Pyy, Ly)
+            for r in range(N_X):
+                for j in range(N_Y):  # forward substitution Ly z = Pxy[r]
+                    v = Pxy[r, j]
+                    for m in range(j):
+                        v -= Ly[j, m] * zrow[m]
+                    zrow[j] = v / Ly[j, j]
+                for j in range(N_Y - 1, -1, -1):  # back substitution Lyᵀ k = z
+                    v = zrow[j]
+                    for m in range(j + 1, N_Y):
+                        v -= Ly[m, j] * K[r, m]
+                    K[r, j] = v / Ly[j, j]
+            for r in range(N_X):
+                acc = xm[r]
+                for j in range(N_Y):
+                    acc += K[r, j] * y[j]
+                x[r] = acc
+            # P = P̄ − K Pyy Kᵀ = P̄ − K Pxyᵀ
+            for r in range(N_X):
+                for c2 in range(N_X):
+                    acc = Pm[r, c2]
+                    for j in range(N_Y):
+                        acc -= K[r, j] * Pxy[c2, j]
+                    P[r, c2] = acc
+            for r in range(N_X):
+                for c2 in range(r + 1, N_X):
+                    v = 0.5 * (P[r, c2] + P[c2, r])
+                    P[r, c2] = v
+                    P[c2, r] = v
+        state[0] = t[k]
+        state[2:6] = fx[k]  # held over the next interval
+        state[6:10] = delta[k]
+        for i in range(4):
+            cd_prev[i] = np.cos(delta[k, i])
+            sd_prev[i] = np.sin(delta[k, i])
+        fy_out[k, 0] = 0.5 * (x[FYF] - x[DFYF])
+        fy_out[k, 1] = 0.5 * (x[FYF] + x[DFYF])
+        fy_out[k, 2] = rear_w * x[FYR]
+        fy_out[k, 3] = (1.0 - rear_w) * x[FYR]
+        var_f = P[FYF, FYF]
+        var_d = P[DFYF, DFYF]
+        cov_fd = P[FYF, DFYF]
+        sig_out[k, 0] = 0.5 * np.sqrt(max(var_f + var_d - 2 * cov_fd, 0.0))
+        sig_out[k, 1] = 0.5 * np.sqrt(max(var_f + var_d + 2 * cov_fd, 0.0))
+        sig_out[k, 2] = rear_w * np.sqrt(max(P[FYR, FYR], 0.0))
+        sig_out[k, 3] = (1.0 - rear_w) * np.sqrt(max(P[FYR, FYR], 0.0))

@@ -1,0 +1,402 @@
+"""Longitudinal tire force per corner from the wheel dynamics, without road friction.
+
+Wheel dynamics (000 eq. (1), 001 eq. (1), 004 eq. (1), bearing damping neglected):
+    I_w ω̇ = T − R_e F_x.
+Three interchangeable methods, each a compiled kernel that advances a state
+array over a chunk of samples (so ``run`` over a whole log and ``step`` per
+sample execute the same code and give identical results):
+
+* ``ukf``  — UKF with the papers' sigma-point scaling (000 eq. (10)–(12), 004 eq. (1)–(5))
+  and covariance switching on high wheel acceleration (004 Sec. II-A), whose random-walk
+  parameter is the wheel acceleration ω̇ rather than F_x, with the torque filtered as a
+  state: x = [ω, ω̇, T], F̂_x = (T̂ − I_w ω̇̂)/R_e. It is the papers' estimator with the
+  force's process model F_{k+1} = F_k + ΔT/R_e + ϱ (a torque step moves the force one
+  to one unless the wheel accelerates), which removes the lag of a pure random walk.
+* ``ukf_rw`` — the papers' form exactly: x = [ω, F_x], F_x a random walk.
+* ``pid``  — PID observer of 001 eq. (2)–(5) (gains η1 = 1.8, η2 = 11.4, η3 = 50.6).
+* ``uio``  — unknown-input observer of 000 eq. (2)–(3).
+
+Plus ``naive``, the finite-difference floor F_x = (T − I_w Δω/Δt)/R_e.
+
+Arrays have a trailing corner axis (fl, fr, rl, rr). Units: ω rad/s, T N m, F N.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+from numba import njit
+
+from vestim.filters.ukf import sigma_points
+
+_JIT: dict[str, Any] = {"cache": True, "error_model": "numpy"}
+
+METHODS: tuple[str, ...] = ("ukf", "ukf_rw", "pid", "uio", "naive")
+
+
+# ----------------------------------------------------------------------------- UKF
+# state per corner: [ω, F]; scratch per call
+W, F = 0, 1
+
+
+@dataclass(frozen=True)
+class UKFParams:
+    """Noise settings of the UKF force estimators (one set for every maneuver).
+
+    Attributes:
+        r_omega: wheel-speed measurement variance, (rad/s)² — 000 Sec. IV-A's 0.18.
+        r_torque: wheel-torque measurement variance, (N m)² — 000 Sec. IV-A's 32.
+        q_acc: random-walk intensity of ω̇ in normal driving, (rad/s²)²/s (``ukf``).
+        q_acc_high: the same while the wheel accelerates hard (004's switching).
+        q_torque: random-walk intensity of the true torque, (N m)²/s (``ukf``).
+        q_force: random-walk intensity of F_x, N²/s, in normal driving (``ukf_rw``).
+        q_force_high: the same under the switching (``ukf_rw``).
+        omega_dot_high: |ω̇| threshold of the switching, rad/s² (1.3 g at the SUV tire periphery).
+        omega_dot_window: samples spanned by the ω̇ difference used for switching (and Δt).
+        p0_acc: initial variance of ω̇, (rad/s²)².
+        p0_force: initial variance of F_x, N² (``ukf_rw``).
+    """
+
+    r_omega: float = 0.18
+    r_torque: float = 32.0
+    q_acc: float = 1.0e2
+    q_acc_high: float = 3.0e4
+    q_torque: float = 1.0e3
+    q_force: float = 1.0e5
+    q_force_high: float = 1.0e6
+    omega_dot_high: float = 40.0
+    omega_dot_window: int = 10
+    p0_acc: float = 100.0
+    p0_force: float = 1.0e6
+
+
+@njit(**_JIT)
+def ukf_rw_kernel(t: np.ndarray, omega: np.ndarray, torque: np.ndarray, iw: float, radius: float,
+               r_omega: float, r_torque: float, q_force: float, q_force_high: float,
+               omega_dot_high: float, p0_force: float, wm: np.ndarray, wc: np.ndarray, tau: float,
+               x: np.ndarray, P: np.ndarray, hist_t: np.ndarray, hist_w: np.ndarray,
+               prev_torque: np.ndarray, fx: np.ndarray, sigma: np.ndarray,
+               high: np.ndarray) -> None:
+    """Advance the four corner UKFs over a chunk of samples (in place on the state arrays).
+
+    State arrays: x (4, 2) = [ω, F] per corner, P (4, 2, 2), hist_t (m,) and
+    hist_w (m, 4) the last m sample times and wheel speeds (for the ω̇ switch and
+    Δt), prev_torque (4,) the torque held over the coming interval. ``hist_t[0]``
+    NaN means "not started": the first sample initialises ω from the measurement.
+
+    The prediction uses the torque of the previous sample (zero-order hold) and
+    Δt from the time stamps; the measurement is the wheel speed. The sigma
+    points are redrawn from the predicted (x̂, P̄ + Q) before the update (000
+    eq. (11) reuses the propagated points, which leaves Q out of P_zz; redrawing
+    is the standard, consistent form).
+    """
+    n = t.shape[0]
+    m = hist_t.shape[0]
+    pts = np.empty((5, 2))
+    xm = np.empty(2)
+    Pm = np.empty((2, 2))
+    L = np.empty((2, 2))
+    for k in range(n):
+        if np.isnan(hist_t[0]):
+            for c in range(4):
+                x[c, W] = omega[k, c]
+                x[c, F] = 0.0
+                P[c, 0, 0] = r_omega
+                P[c, 0, 1] = 0.0
+                P[c, 1, 0] = 0.0
+                P[c, 1, 1] = p0_force
+                fx[k, c] = 0.0
+                sigma[k, c] = np.sqrt(p0_force)
+                high[k, c] = False
+                prev_torque[c] = torque[k, c]
+            for j in range(m):
+                hist_t[j] = t[k]
+                for c in range(4):
+                    hist_w[j, c] = omega[k, c]
+            continue
+        dt = t[k] - hist_t[m - 1]
+        span = t[k] - hist_t[0]
+        for c in range(4):
+            omega_dot = (omega[k, c] - hist_w[0, c]) / span if span > 0 else 0.0
+            is_high = abs(omega_dot) > omega_dot_high
+            q_f = q_force_high if is_high else q_force
+            # Prediction through the wheel dynamics: sigma points of (x, P).
+            sigma_points(x[c], P[c], tau, L, pts)
+            for i in range(5):
+                pts[i, W] = pts[i, W] + dt / iw * (prev_torque[c] - radius * pts[i, F])
+            xm[0] = 0.0
+            xm[1] = 0.0
+            for i in range(5):
+                xm[0] += wm[i] * pts[i, W]
+                xm[1] += wm[i] * pts[i, F]
+            Pm[:, :] = 0.0
+            for i in range(5):
+                d0 = pts[i, W] - xm[0]
+                d1 = pts[i, F] - xm[1]
+                Pm[0, 0] += wc[i] * d0 * d0
+                Pm[0, 1] += wc[i] * d0 * d1
+                Pm[1, 1] += wc[i] * d1 * d1
+            Pm[1, 0] = Pm[0, 1]
+            Pm[0, 0] += (dt / iw) ** 2 * r_torque
+            Pm[1, 1] += q_f * dt
+            # Measurement update with the wheel speed.
+            sigma_points(xm, Pm, tau, L, pts)
+            zhat = 0.0
+            for i in range(5):
+                zhat += wm[i] * pts[i, W]
+            pzz = r_omega
+            pxz0 = 0.0
+            pxz1 = 0.0
+            for i in range(5):
+                dz = pts[i, W] - zhat
+                pzz += wc[i] * dz * dz
+                pxz0 += wc[i] * (pts[i, W] - xm[0]) * dz
+                pxz1 += wc[i] * (pts[i, F] - xm[1]) * dz
+            k0 = pxz0 / pzz
+            k1 = pxz1 / pzz
+            innov = omega[k, c] - zhat
+            x[c, W] = xm[0] + k0 * innov
+            x[c, F] = xm[1] + k1 * innov
+            P[c, 0, 0] = Pm[0, 0] - k0 * k0 * pzz
+            P[c, 0, 1] = Pm[0, 1] - k0 * k1 * pzz
+            P[c, 1, 0] = P[c, 0, 1]
+            P[c, 1, 1] = Pm[1, 1] - k1 * k1 * pzz
+            fx[k, c] = x[c, F]
+            sigma[k, c] = np.sqrt(max(P[c, 1, 1], 0.0))
+            high[k, c] = is_high
+            prev_torque[c] = torque[k, c]
+        _push(hist_t, hist_w, t[k], omega[k])
+
+
+@njit(**_JIT)
+def _push(hist_t: np.ndarray, hist_w: np.ndarray, tk: float, wk: np.ndarray) -> None:
+    """Shift the (time, ω) history by one sample and append the newest."""
+    m = hist_t.shape[0]
+    for j in range(m - 1):
+        hist_t[j] = hist_t[j + 1]
+        for c in range(4):
+            hist_w[j, c] = hist_w[j + 1, c]
+    hist_t[m - 1] = tk
+    for c in range(4):
+        hist_w[m - 1, c] = wk[c]
+
+
+# ---------------------------------------------------- UKF on [ω, ω̇, T] (default)
+A_W, A_A, A_T = 0, 1, 2
+
+
+@njit(**_JIT)
+def ukf_kernel(t: np.ndarray, omega: np.ndarray, torque: np.ndarray, iw: float, radius: float,
+               r_omega: float, r_torque: float, q_acc: float, q_acc_high: float,
+               q_torque: float, omega_dot_high: float, p0_acc: float, wm: np.ndarray,
+               wc: np.ndarray, tau: float, x: np.ndarray, P: np.ndarray, hist_t: np.ndarray,
+               hist_w: np.ndarray, fx: np.ndarray, sigma: np.ndarray, high: np.ndarray) -> None:
+    """Advance the four corner UKFs on x = [ω, ω̇, T] over a chunk (in place on x (4, 3), P (4, 3, 3)).
+
+    Process: ω_{k+1} = ω_k + Δt ω̇_k + ½Δt² … (ω̇ held), ω̇ and T random walks with
+    intensities q_acc (q_acc_high while |Δω/Δt| over the history window exceeds
+    ``omega_dot_high``: 004's switching) and q_torque. Measurements: ω (variance
+    r_omega) and T (variance r_torque). Output F̂_x = (T̂ − I_w ω̇̂)/R_e with its
+    one-sigma from the covariance. ``hist_t``/``hist_w`` as in :func:`ukf_rw_kernel`.
+    """
+    n = t.shape[0]
+    m = hist_t.shape[0]
+    npts = 7
+    pts = np.empty((npts, 3))
+    xm = np.empty(3)
+    Pm = np.empty((3, 3))
+    L = np.empty((3, 3))
+    zhat = np.empty(2)
+    pzz = np.empty((2, 2))
+    pxz = np.empty((3, 2))
+    for k in range(n):
+        if np.isnan(hist_t[0]):
+            for c in range(4):
+                x[c, A_W] = omega[k, c]
+                x[c, A_A] = 0.0
+                x[c, A_T] = torque[k, c]
+                P[c, :, :] = 0.0
+                P[c, A_W, A_W] = r_omega
+                P[c, A_A, A_A] = p0_acc
+                P[c, A_T, A_T] = r_torque
+                fx[k, c] = torque[k, c] / radius
+                sigma[k, c] = np.sqrt(r_torque + iw * iw * p0_acc) / radius
+                high[k, c] = False
+            for j in range(m):
+                hist_t[j] = t[k]
+                for c in range(4):
+                    hist_w[j, c] = omega[k, c]
+            continue
+        dt = t[k] - hist_t[m - 1]
+        span = t[k] - hist_t[0]
+        for c in range(4):
+            omega_dot = (omega[k, c] - hist_w[0, c]) / span if span > 0 else 0.0
+            is_high = abs(omega_dot) > omega_dot_high
+            sigma_points(x[c], P[c], tau, L, pts)
+            for i in range(npts):
+                pts[i, A_W] += dt * pts[i, A_A]
+            xm[:] = 0.0
+            for i in range(npts):
+                for j in range(3):
+                    xm[j] += wm[i] * pts[i, j]
+            Pm[:, :] = 0.0
+            for i in range(npts):
+                for r in range(3):
+                    for q in range(3):
+                        Pm[r, q] += wc[i] * (pts[i, r] - xm[r]) * (pts[i, q] - xm[q])
+            q_a = q_acc_high if is_high else q_acc
+            # ω integrates ω̇: a white ω̇ increment over Δt adds Δt³/3 to var(ω).
+            Pm[A_W, A_W] += q_a * dt**3 / 3.0
+            Pm[A_W, A_A] += q_a * dt**2 / 2.0
+            Pm[A_A, A_W] += q_a * dt**2 / 2.0
+            Pm[A_A, A_A] += q_a * dt
+            Pm[A_T, A_T] += q_torque * dt
+            # Update with [ω, T]. The measurement selects state components, so the
+            # sigma-point sums of 000 eq. (11) equal the blocks of P̄ exactly
+            # (Σ W^c (χ − x̄)(χ − x̄)ᵀ = P̄ for these weights): evaluated in closed form.
+            zhat[0] = xm[A_W]
+            zhat[1] = xm[A_T]
+            pzz[0, 0] = Pm[A_W, A_W]
+            pzz[0, 1] = Pm[A_W, A_T]
+            pzz[1, 1] = Pm[A_T, A_T]
+            for r in range(3):
+                pxz[r, 0] = Pm[r, A_W]
+                pxz[r, 1] = Pm[r, A_T]
+            pzz[1, 0] = pzz[0, 1]
+            pzz[0, 0] += r_omega
+            pzz[1, 1] += r_torque
+            det = pzz[0, 0] * pzz[1, 1] - pzz[0, 1] * pzz[1, 0]
+            i00 = pzz[1, 1] / det
+            i01 = -pzz[0, 1] / det
+            i11 = pzz[0, 0] / det
+            e0 = omega[k, c] - zhat[0]
+            e1 = torque[k, c] - zhat[1]
+            for r in range(3):
+                g0 = pxz[r, 0] * i00 + pxz[r, 1] * i01
+                g1 = pxz[r, 0] * i01 + pxz[r, 1] * i11
+                x[c, r] = xm[r] + g0 * e0 + g1 * e1
+                for q in range(3):
+                    # P = P̄ − K P_zz Kᵀ = P̄ − K P_xzᵀ
+                    P[c, r, q] = Pm[r, q] - (g0 * pxz[q, 0] + g1 * pxz[q, 1])
+            for r in range(3):
+                for q in range(r + 1, 3):
+                    v = 0.5 * (P[c, r, q] + P[c, q, r])
+                    P[c, r, q] = v
+                    P[c, q, r] = v
+            fx[k, c] = (x[c, A_T] - iw * x[c, A_A]) / radius
+            var = (P[c, A_T, A_T] - 2.0 * iw * P[c, A_T, A_A] + iw * iw * P[c, A_A, A_A])
+            sigma[k, c] = np.sqrt(max(var, 0.0)) / radius
+            high[k, c] = is_high
+        _push(hist_t, hist_w, t[k], omega[k])
+
+
+# ----------------------------------------------------------------- PID observer
+@dataclass(frozen=True)
+class PIDParams:
+    """Gains of the PID observer, 001 Sec. V: η1 (N per rad/s), η2 (N m per rad/s), η3 (1/s)."""
+
+    eta1: float = 1.8
+    eta2: float = 11.4
+    eta3: float = 50.6
+
+
+@njit(**_JIT)
+def pid_kernel(t: np.ndarray, omega: np.ndarray, torque: np.ndarray, iw: float, radius: float,
+               eta1: float, eta2: float, eta3: float, state: np.ndarray, prev: np.ndarray,
+               fx: np.ndarray) -> None:
+    """PID observer of 001 eq. (2)–(5), advanced in place over a chunk of samples.
+
+    001 prints the observer in a garbled extraction; we use the form whose error
+    dynamics are those the paper analyses (eq. (3)–(8)), with e_ω = ω − ω̂:
+        I_w dω̂/dt = T − R_e F̂ + η2 e_ω                      (speed observer, eq. (4))
+        F̂ = F_c − η1 e_ω                                     (proportional part)
+        dF_c/dt = η3 (F_m − F̂),  F_m = (T − I_w Δω/Δt)/R_e  (integral part, eq. (2)),
+    F_m being "the updated measurement at the current time step" of 001 Sec. III-A.
+    Then e_F = F − F̂ obeys ė_F = −η3 e_F + Ω̇_f once e_ω has settled (eq. (8)).
+
+    ``state`` (3, 4): rows ω̂, F_c, started-flag; ``prev`` (3, 4): rows t, ω, T of
+    the previous sample.
+    """
+    n = t.shape[0]
+    for k in range(n):
+        for c in range(4):
+            if state[2, c] == 0.0:
+                state[0, c] = omega[k, c]
+                state[1, c] = 0.0
+                state[2, c] = 1.0
+                fx[k, c] = 0.0
+            else:
+                dt = t[k] - prev[0, c]
+                f_meas = (prev[2, c] - iw * (omega[k, c] - prev[1, c]) / dt) / radius
+                e_prev = prev[1, c] - state[0, c]
+                f_hat = state[1, c] - eta1 * e_prev
+                state[0, c] += dt / iw * (prev[2, c] - radius * f_hat + eta2 * e_prev)
+                state[1, c] += dt * eta3 * (f_meas - f_hat)
+                fx[k, c] = state[1, c] - eta1 * (omega[k, c] - state[0, c])
+            prev[0, c] = t[k]
+            prev[1, c] = omega[k, c]
+            prev[2, c] = torque[k, c]
+
+
+# ------------------------------------------------------------ unknown-input observer
+@dataclass(frozen=True)
+class UIOParams:
+    """UIO of 000 eq. (2): proportional gain K_p (N m per rad/s) and nominal force f0 (N).
+
+    000 does not give K_p; 42 N m s/rad puts the error pole (eq. (3), 𝒦 = K_p/I_w)
+    at 25 rad/s for the SUV's I_w = 1.68 kg m², the bandwidth of the UKF.
+    """
+
+    kp: float = 42.0
+    f0: float = 0.0
+
+
+@njit(**_JIT)
+def uio_kernel(t: np.ndarray, omega: np.ndarray, torque: np.ndarray, iw: float, radius: float,
+               kp: float, f0: float, state: np.ndarray, prev: np.ndarray, fx: np.ndarray) -> None:
+    """Unknown-input observer of 000 eq. (2)–(3), advanced in place over a chunk.
+
+    Virtual wheel speed I_w dω̂/dt = T − R_e f0 + K_p ω̃ with ω̃ = ω − ω̂, and
+    F̂ = f0 − K_p ω̃ / R_e (eq. (2)). Its error obeys eq. (3), ė = −(K_p/I_w) e − R_e(F − f0)/I_w,
+    so in steady state K_p e = −R_e(F − f0) and F̂ = F. The ω̂ update is the exact
+    solution over Δt with T held and ω interpolated linearly between samples
+    (for ω̂̇ = −a(ω̂ − g(t)), g = g0 + s t: ω̂(Δt) = g(Δt) − s/a + (ω̂0 − g0 + s/a) e^{−aΔt}),
+    so a constant force is recovered exactly.
+
+    ``state`` (2, 4): rows ω̂, started-flag; ``prev`` (3, 4): rows t, T, ω of the previous sample.
+    """
+    n = t.shape[0]
+    a = kp / iw
+    for k in range(n):
+        for c in range(4):
+            if state[1, c] == 0.0:
+                state[0, c] = omega[k, c]
+                state[1, c] = 1.0
+            else:
+                dt = t[k] - prev[0, c]
+                offset = (prev[1, c] - radius * f0) / kp
+                g0 = prev[2, c] + offset
+                slope = (omega[k, c] - prev[2, c]) / dt
+                g1 = omega[k, c] + offset
+                decay = np.exp(-a * dt)
+                state[0, c] = g1 - slope / a + (state[0, c] - g0 + slope / a) * decay
+            fx[k, c] = f0 - kp * (omega[k, c] - state[0, c]) / radius
+            prev[0, c] = t[k]
+            prev[1, c] = torque[k, c]
+            prev[2, c] = omega[k, c]
+
+
+# ----------------------------------------------------------------------- naive floor
+def naive_fx(t: np.ndarray, omega: np.ndarray, torque: np.ndarray, iw: float,
+             radius: float) -> np.ndarray:
+    """The floor to beat: F_x = (T − I_w Δω/Δt)/R_e with a backward difference (N, shape of ω).
+
+    The first sample has no difference and gets the torque alone.
+    """
+    fx = np.empty_like(omega)
+    fx[0] = torque[0] / radius
+    dt = np.diff(t)[:, None]
+    fx[1:] = (torque[:-1] - iw * np.diff(omega, axis=0) / dt) / radius
+    return fx

@@ -1,0 +1,160 @@
+"""Body attitude and normal loads per corner, without road friction.
+
+Attitude (000 Sec. II-B after Rehm): the body roll φ and pitch θ relative to
+the road follow the measured rates, corrected toward their quasi-static values
+with gains L_φ, L_θ (a complementary filter: rate at high frequency, load
+balance at low frequency):
+    φ̂̇ = p_m + L_φ (φ_ss − φ̂),   φ_ss = m (h − h_rc) a_y / k_φ,
+    θ̂̇ = q_m + L_θ (θ_ss − θ̂),   θ_ss = −m (h − h_pc) a_x / k_θ,
+where a_x, a_y are the IMU readings (the pendulum term of the roll/pitch
+balance cancels the IMU's own tilt to first order, so no further correction
+is needed). Without roll/pitch rate channels the quasi-static angles are used.
+
+Normal loads (our derivation; 000 eq. (13)–(14), 001 eq. (14)–(17) compared in
+:func:`normal_loads_paper`): rotate the IMU specific force back to the road
+plane with the body angles (f_x = a_x cos θ + a_z sin θ, f_z = a_z cos θ − a_x sin θ,
+f_y = a_y cos φ − a_z sin φ; the spec's roll sign, left side up, is the
+opposite of 001 eq. (16)'s) — road grade and bank need no estimate, because the
+tires carry the specific force whatever its origin — then
+
+    F_zf = m (l_r f_z − h f_x)/L,  F_zr = m (l_f f_z + h f_x)/L          (001 eq. (15))
+    ΔF_f = [m (l_r/L) h_rc f_y + s_f M_el]/t_f,  ΔF_r = [m (l_f/L) h_rc f_y + (1 − s_f) M_el]/t_r
+    F_z,fl = F_zf/2 − ΔF_f,  F_z,fr = F_zf/2 + ΔF_f  (rear alike),
+
+with the elastic roll moment M_el carried by the springs: quasi-static
+M_el = m (h − h_rc)(f_y + f_z sin φ) (``mode="static"``), or from the
+suspension states M_el = k_φ φ̂ + c_φ p_m (``mode="dynamic"``; the pitch
+transfer likewise uses k_θ θ̂ + c_θ q_m). s_f is the front share of roll
+stiffness ([suspension] of the vehicle file). Two corrections to the printed
+eq. (14) of 000 / (17) of 001: (i) the axle load F_zi is used directly, whereas
+m_i ā_φz with m_i = F_zi/g counts the vertical acceleration twice; (ii) the
+roll term is the sprung CG's lateral shift (h − h_rc) sin φ, not h_rc sin φ.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+from numba import njit
+
+from vestim.constants import G
+from vestim.io.vehicle import Vehicle
+
+_JIT: dict[str, Any] = {"cache": True, "error_model": "numpy"}
+
+MODES: tuple[str, ...] = ("static", "dynamic")
+
+
+@njit(**_JIT)
+def attitude_kernel(t: np.ndarray, ax: np.ndarray, ay: np.ndarray, p: np.ndarray,
+                    q: np.ndarray, roll_gain: float, pitch_gain: float, c_roll: float,
+                    c_pitch: float, state: np.ndarray, roll: np.ndarray,
+                    pitch: np.ndarray) -> None:
+    """Complementary attitude filter over a chunk, in place on ``state`` = [φ̂, θ̂, t_prev, started].
+
+    c_roll = m(h − h_rc)/k_φ and c_pitch = −m(h − h_pc)/k_θ map a_y, a_x to the
+    quasi-static angles (rad per m/s²). NaN rates mean "no rate sensor": the
+    quasi-static angle is used directly.
+    """
+    for k in range(t.shape[0]):
+        phi_ss = c_roll * ay[k]
+        th_ss = c_pitch * ax[k]
+        if state[3] == 0.0:
+            state[0] = phi_ss
+            state[1] = th_ss
+            state[3] = 1.0
+        else:
+            dt = t[k] - state[2]
+            if np.isnan(p[k]):
+                state[0] = phi_ss
+            else:
+                state[0] += dt * (p[k] + roll_gain * (phi_ss - state[0]))
+            if np.isnan(q[k]):
+                state[1] = th_ss
+            else:
+                state[1] += dt * (q[k] + pitch_gain * (th_ss - state[1]))
+        state[2] = t[k]
+        roll[k] = state[0]
+        pitch[k] = state[1]
+
+
+def road_specific_force(ax: np.ndarray, ay: np.ndarray, az: np.ndarray, roll: np.ndarray,
+                        pitch: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """IMU specific force rotated from the body to the road plane: (f_x, f_y, f_z) in m/s².
+
+    Inverse of the body rotation (pitch θ, then roll φ): 001 eq. (14) for x and z;
+    for y the spec's roll sign (φ > 0 lifts the left side) gives f_y = a_y cos φ − a_z sin φ.
+    """
+    cp, sp = np.cos(roll), np.sin(roll)
+    ct, st = np.cos(pitch), np.sin(pitch)
+    f_y = cp * ay - sp * az
+    tmp_z = sp * ay + cp * az  # body z-axis component after removing roll
+    f_x = ct * ax + st * tmp_z
+    f_z = -st * ax + ct * tmp_z
+    return f_x, f_y, f_z
+
+
+def normal_loads(f_x: np.ndarray, f_y: np.ndarray, f_z: np.ndarray, roll: np.ndarray,
+                 pitch: np.ndarray, roll_rate: np.ndarray, pitch_rate: np.ndarray,
+                 vehicle: Vehicle, mode: str = "static") -> np.ndarray:
+    """Normal load per corner (n, 4) in N from road-frame specific force and body angles.
+
+    See the module docstring for the equations; ``mode`` "static" or "dynamic".
+    NaN rates in dynamic mode fall back to the static elastic moment sample-wise.
+    """
+    if mode not in MODES:
+        raise ValueError(f"normal-load mode {mode!r}: use one of {', '.join(MODES)}")
+    b, s = vehicle.body, vehicle.suspension
+    m, L, h = b.mass, b.wheelbase, b.cg_height
+    static_pitch = -m * (h - s.pitch_center_height) * f_x
+    static_roll = m * (h - b.roll_center_height) * (f_y + f_z * np.sin(roll))
+    if mode == "dynamic":
+        m_pitch = s.pitch_stiffness * pitch + s.pitch_damping * np.nan_to_num(pitch_rate)
+        m_roll = s.roll_stiffness * roll + s.roll_damping * np.nan_to_num(roll_rate)
+        m_pitch = np.where(np.isnan(pitch_rate), static_pitch, m_pitch)
+        m_roll = np.where(np.isnan(roll_rate), static_roll, m_roll)
+    else:
+        m_pitch, m_roll = static_pitch, static_roll
+    dz_long = (-m * s.pitch_center_height * f_x + m_pitch) / L  # load gained by the front axle
+    fzf = m * f_z * b.lr / L + dz_long
+    fzr = m * f_z * b.lf / L - dz_long
+    sf = s.roll_stiffness_front_share
+    dlat_f = (m * b.lr / L * b.roll_center_height * f_y + sf * m_roll) / b.track_f
+    dlat_r = (m * b.lf / L * b.roll_center_height * f_y + (1 - sf) * m_roll) / b.track_r
+    out = np.empty((f_x.shape[0], 4))
+    out[:, 0] = 0.5 * fzf - dlat_f
+    out[:, 1] = 0.5 * fzf + dlat_f
+    out[:, 2] = 0.5 * fzr - dlat_r
+    out[:, 3] = 0.5 * fzr + dlat_r
+    return np.maximum(out, 0.0)
+
+
+def normal_loads_paper(ax: np.ndarray, ay: np.ndarray, az: np.ndarray, roll: np.ndarray,
+                       pitch: np.ndarray, vehicle: Vehicle) -> np.ndarray:
+    """Normal loads exactly as printed in 001 eq. (14)–(17) (= 000 eq. (13)–(14)), for comparison.
+
+    ā_θx = a_x cos θ + a_z sin θ, ā_θz = a_z cos θ − a_x sin θ,
+    F_zf = −m(h ā_θx − l_r ā_θz)/L, F_zr = m(h ā_θx + l_f ā_θz)/L,
+    ā_φy = a_y cos φ + a_z sin φ, ā_φz = a_z cos φ − a_y sin φ, m_i = F_zi/g,
+    F_ziL = m_i/T_i [ā_φz (T_i/2 − h_rc sin φ) − ā_φy h],
+    F_ziR = m_i/T_i [ā_φz (T_i/2 + h_rc sin φ) + ā_φy h].
+    The paper's roll sign convention is opposite to the spec's; φ is negated here
+    so that both describe the same body motion.
+    """
+    b = vehicle.body
+    m, L, h = b.mass, b.wheelbase, b.cg_height
+    phi = -roll
+    a_tx = ax * np.cos(pitch) + az * np.sin(pitch)
+    a_tz = az * np.cos(pitch) - ax * np.sin(pitch)
+    fzf = -m / L * (h * a_tx - b.lr * a_tz)
+    fzr = m / L * (h * a_tx + b.lf * a_tz)
+    a_py = ay * np.cos(phi) + az * np.sin(phi)
+    a_pz = az * np.cos(phi) - ay * np.sin(phi)
+    out = np.empty((ax.shape[0], 4))
+    for col, fz_axle, track in ((0, fzf, b.track_f), (2, fzr, b.track_r)):
+        mi = fz_axle / G
+        shift = b.roll_center_height * np.sin(phi)
+        out[:, col] = mi / track * (a_pz * (track / 2 - shift) - a_py * h)
+        out[:, col + 1] = mi / track * (a_pz * (track / 2 + shift) + a_py * h)
+    return out
