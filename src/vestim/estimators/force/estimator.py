@@ -118,8 +118,6 @@ class ForceEstimator:
         self._c_pitch = -b.mass * (b.cg_height - s.pitch_center_height) / s.pitch_stiffness
         self._xw = np.array([b.lf, b.lf, -b.lr, -b.lr])
         self._yw = 0.5 * np.array([b.track_f, -b.track_f, b.track_r, -b.track_r])
-        self._w2, self._c2, self._tau2 = ukf_weights(2)
-        self._w3, self._c3, self._tau3 = ukf_weights(3)
         self._w4, self._c4, self._tau4 = ukf_weights(4)
         lp = self.config.lateral
         self._q_lat = np.array([lp.q_force, lp.q_force, lp.q_split, lp.q_yaw])
@@ -131,19 +129,10 @@ class ForceEstimator:
 
     def reset(self) -> None:
         """Forget all filter states (the next sample initialises them)."""
-        window = self.config.ukf.omega_dot_window
+        cfg = self.config
+        self._lon = lon.LongitudinalEstimator(self.vehicle, cfg.longitudinal, cfg.ukf, cfg.pid,
+                                              cfg.uio)
         self._att = np.zeros(4)
-        self._lon_x = np.zeros((4, 2))
-        self._lon_P = np.zeros((4, 2, 2))
-        self._lon_ht = np.full(window, np.nan)
-        self._lon_hw = np.zeros((window, 4))
-        self._lon_tq = np.zeros(4)
-        self._acc_x = np.zeros((4, 3))
-        self._acc_P = np.zeros((4, 3, 3))
-        self._pid_state = np.zeros((3, 4))
-        self._pid_prev = np.zeros((3, 4))
-        self._uio_state = np.zeros((2, 4))
-        self._uio_prev = np.zeros((3, 4))
         self._lat_x = np.zeros(lat.N_X)
         self._lat_P = np.zeros((lat.N_X, lat.N_X))
         self._lat_state = np.zeros(10)
@@ -166,34 +155,7 @@ class ForceEstimator:
         # The moment fades out below |ω| = 3 rad/s (1 m/s): a sharper switch would
         # flip with the wheel-speed noise (σ 0.42 rad/s) at standstill.
         torque = np.ascontiguousarray(u.torque - rr * np.clip(u.omega / 3.0, -1.0, 1.0))
-        fx = np.empty((n, 4))
-        sig_fx = np.full((n, 4), np.nan)
-        method = cfg.longitudinal
-        if method == "ukf":
-            p = cfg.ukf
-            high = np.empty((n, 4), dtype=np.bool_)
-            lon.ukf_kernel(u.t, u.omega, torque, b.wheel_inertia, b.wheel_radius, p.r_omega,
-                           p.r_torque, p.q_acc, p.q_acc_high, p.q_torque, p.omega_dot_high,
-                           p.p0_acc, self._w3, self._c3, self._tau3, self._acc_x, self._acc_P,
-                           self._lon_ht, self._lon_hw, fx, sig_fx, high)
-        elif method == "ukf_rw":
-            p = cfg.ukf
-            high = np.empty((n, 4), dtype=np.bool_)
-            lon.ukf_rw_kernel(u.t, u.omega, torque, b.wheel_inertia, b.wheel_radius, p.r_omega,
-                              p.r_torque, p.q_force, p.q_force_high, p.omega_dot_high,
-                              p.p0_force, self._w2, self._c2, self._tau2, self._lon_x,
-                              self._lon_P, self._lon_ht, self._lon_hw, self._lon_tq, fx, sig_fx,
-                              high)
-        elif method == "pid":
-            g = cfg.pid
-            lon.pid_kernel(u.t, u.omega, torque, b.wheel_inertia, b.wheel_radius, g.eta1,
-                           g.eta2, g.eta3, self._pid_state, self._pid_prev, fx)
-        elif method == "uio":
-            g2 = cfg.uio
-            lon.uio_kernel(u.t, u.omega, torque, b.wheel_inertia, b.wheel_radius, g2.kp,
-                           g2.f0, self._uio_state, self._uio_prev, fx)
-        else:
-            fx = lon.naive_fx(u.t, u.omega, torque, b.wheel_inertia, b.wheel_radius)
+        fx, sig_fx = self._lon.advance(u.t, u.omega, torque)
         drag = self._drag_coef * (b.wheel_radius * u.omega.mean(axis=1)) ** 2
         fy = np.empty((n, 4))
         sig_fy = np.empty((n, 4))
@@ -232,8 +194,53 @@ class ForceEstimator:
         return self._frame(u.t, self._advance(u))
 
     def step(self, sample: Mapping[str, float]) -> dict[str, float]:
-        """Advance by one sample (a mapping with the log's column names); return that row."""
-        frame = pd.DataFrame({k: [v] for k, v in sample.items()})
-        u = inputs_from_log(frame, self.vehicle)
-        row = self._frame(u.t, self._advance(u))
-        return {str(k): float(v) for k, v in row.iloc[0].items()}
+        """Advance by one sample (a mapping with the log's column names); return that row.
+
+        Builds the one-sample input arrays directly (no DataFrame), so a call costs
+        tens of microseconds, dominated by the kernels' dispatch.
+        """
+        u = self._inputs_from_sample(sample)
+        res = self._advance(u)
+        out: dict[str, float] = {"t": float(u.t[0])}
+        for i, c in enumerate(CORNERS):
+            fz = float(res["fz"][0, i])
+            fx, fy = float(res["fx"][0, i]), float(res["fy"][0, i])
+            out[f"fx_{c}"] = fx
+            out[f"fy_{c}"] = fy
+            out[f"fz_{c}"] = fz
+            out[f"mu_x_{c}"] = fx / fz if fz > 1.0 else 0.0
+            out[f"mu_y_{c}"] = fy / fz if fz > 1.0 else 0.0
+            if not np.isnan(res["sigma_fx"][0, i]):
+                out[f"sigma_fx_{c}"] = float(res["sigma_fx"][0, i])
+            out[f"sigma_fy_{c}"] = float(res["sigma_fy"][0, i])
+        out["roll"] = float(res["roll"][0])
+        out["pitch"] = float(res["pitch"][0])
+        return out
+
+    def _inputs_from_sample(self, sample: Mapping[str, float]) -> _Inputs:
+        missing = [c for c in REQUIRED if c not in sample]
+        if missing:
+            raise LogFormatError(f"the force estimators need channel(s) {', '.join(missing)} "
+                                 "in every sample")
+        if "delta_fl" in sample and "delta_fr" in sample:
+            front = (sample["delta_fl"], sample["delta_fr"])
+        elif "delta" in sample:
+            front = (sample["delta"], sample["delta"])
+        elif "steering_wheel_angle" in sample:
+            d = sample["steering_wheel_angle"] / self.vehicle.body.steering_ratio
+            front = (d, d)
+        else:
+            raise LogFormatError("no steering channel: give delta_fl and delta_fr, delta, or "
+                                 "steering_wheel_angle")
+
+        def one(name: str, default: float) -> np.ndarray:
+            return np.array([float(sample.get(name, default))])
+
+        return _Inputs(
+            t=one("t", np.nan),
+            omega=np.array([[float(sample[f"omega_{c}"]) for c in CORNERS]]),
+            torque=np.array([[float(sample[f"torque_{c}"]) for c in CORNERS]]),
+            ax=one("ax", 0.0), ay=one("ay", 0.0), az=one("az", G), yaw_rate=one("yaw_rate", 0.0),
+            roll_rate=one("roll_rate", np.nan), pitch_rate=one("pitch_rate", np.nan),
+            delta=np.array([[float(front[0]), float(front[1]), 0.0, 0.0]]),
+        )

@@ -29,7 +29,8 @@ from typing import Any
 import numpy as np
 from numba import njit
 
-from vestim.filters.ukf import sigma_points
+from vestim.filters.ukf import sigma_points, ukf_weights
+from vestim.io.vehicle import Vehicle
 
 _JIT: dict[str, Any] = {"cache": True, "error_model": "numpy"}
 
@@ -389,14 +390,85 @@ def uio_kernel(t: np.ndarray, omega: np.ndarray, torque: np.ndarray, iw: float, 
 
 
 # ----------------------------------------------------------------------- naive floor
-def naive_fx(t: np.ndarray, omega: np.ndarray, torque: np.ndarray, iw: float,
-             radius: float) -> np.ndarray:
-    """The floor to beat: F_x = (T − I_w Δω/Δt)/R_e with a backward difference (N, shape of ω).
+@njit(**_JIT)
+def naive_kernel(t: np.ndarray, omega: np.ndarray, torque: np.ndarray, iw: float, radius: float,
+                 prev: np.ndarray, fx: np.ndarray) -> None:
+    """The floor to beat: F_x = (T − I_w Δω/Δt)/R_e with a backward difference, in place.
 
-    The first sample has no difference and gets the torque alone.
+    ``prev`` (3, 4): rows t, T, ω of the previous sample (t NaN before the first
+    sample, which gets the torque alone).
     """
-    fx = np.empty_like(omega)
-    fx[0] = torque[0] / radius
-    dt = np.diff(t)[:, None]
-    fx[1:] = (torque[:-1] - iw * np.diff(omega, axis=0) / dt) / radius
-    return fx
+    for k in range(t.shape[0]):
+        for c in range(4):
+            if np.isnan(prev[0, c]):
+                fx[k, c] = torque[k, c] / radius
+            else:
+                dt = t[k] - prev[0, c]
+                fx[k, c] = (prev[1, c] - iw * (omega[k, c] - prev[2, c]) / dt) / radius
+            prev[0, c] = t[k]
+            prev[1, c] = torque[k, c]
+            prev[2, c] = omega[k, c]
+
+class LongitudinalEstimator:
+    """One longitudinal method for the four corners, with its state (online or batch).
+
+    Args:
+        vehicle: uses [vehicle] wheel_inertia and wheel_radius.
+        method: one of :data:`METHODS`.
+        ukf, pid, uio: parameters of the respective methods.
+    """
+
+    def __init__(self, vehicle: Vehicle, method: str = "ukf", ukf: UKFParams | None = None,
+                 pid: PIDParams | None = None, uio: UIOParams | None = None) -> None:
+        if method not in METHODS:
+            raise ValueError(f"longitudinal force method {method!r}: use one of {', '.join(METHODS)}")
+        self.method = method
+        self.iw = vehicle.body.wheel_inertia
+        self.radius = vehicle.body.wheel_radius
+        self.ukf = ukf or UKFParams()
+        self.pid = pid or PIDParams()
+        self.uio = uio or UIOParams()
+        dim = 3 if method == "ukf" else 2
+        self._wm, self._wc, self._tau = ukf_weights(dim)
+        self.reset()
+
+    def reset(self) -> None:
+        """Forget the state; the next sample initialises it."""
+        window = self.ukf.omega_dot_window
+        dim = 3 if self.method == "ukf" else 2
+        self._x = np.zeros((4, dim))
+        self._P = np.zeros((4, dim, dim))
+        self._hist_t = np.full(window, np.nan)
+        self._hist_w = np.zeros((window, 4))
+        self._prev_torque = np.zeros(4)
+        self._state = np.zeros((3, 4))
+        self._prev = np.zeros((3, 4))
+        self._prev[0] = np.nan  # "no previous sample" (read by the naive kernel)
+
+    def advance(self, t: np.ndarray, omega: np.ndarray,
+                torque: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Process a chunk: t (n,), omega, torque (n, 4) → F_x (n, 4) in N and its one-sigma (NaN if none)."""
+        n = t.shape[0]
+        fx = np.empty((n, 4))
+        sigma = np.full((n, 4), np.nan)
+        u, pid, uio = self.ukf, self.pid, self.uio
+        if self.method == "ukf":
+            high = np.empty((n, 4), dtype=np.bool_)
+            ukf_kernel(t, omega, torque, self.iw, self.radius, u.r_omega, u.r_torque, u.q_acc,
+                       u.q_acc_high, u.q_torque, u.omega_dot_high, u.p0_acc, self._wm, self._wc,
+                       self._tau, self._x, self._P, self._hist_t, self._hist_w, fx, sigma, high)
+        elif self.method == "ukf_rw":
+            high = np.empty((n, 4), dtype=np.bool_)
+            ukf_rw_kernel(t, omega, torque, self.iw, self.radius, u.r_omega, u.r_torque,
+                          u.q_force, u.q_force_high, u.omega_dot_high, u.p0_force, self._wm,
+                          self._wc, self._tau, self._x, self._P, self._hist_t, self._hist_w,
+                          self._prev_torque, fx, sigma, high)
+        elif self.method == "pid":
+            pid_kernel(t, omega, torque, self.iw, self.radius, pid.eta1, pid.eta2, pid.eta3,
+                       self._state, self._prev, fx)
+        elif self.method == "uio":
+            uio_kernel(t, omega, torque, self.iw, self.radius, uio.kp, uio.f0, self._state[:2],
+                       self._prev, fx)
+        else:
+            naive_kernel(t, omega, torque, self.iw, self.radius, self._prev, fx)
+        return fx, sigma
