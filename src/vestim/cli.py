@@ -16,7 +16,8 @@ from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
 from rich.table import Table
 
 from vestim.errors import VestimError
-from vestim.io import load_vehicle, write_log
+from vestim.io import load_vehicle, read_log, write_log
+from vestim.pipeline import Pipeline, PipelineConfig
 from vestim.report.plots import plot_simulation, save_figure
 from vestim.sim import DEFAULT_SET, SensorModel, get_maneuver, maneuver_names, simulate
 from vestim.sim.maneuvers import Maneuver, describe
@@ -76,6 +77,34 @@ def simulate_cmd(
     except (VestimError, ValueError, OSError) as exc:
         raise _fail(exc) from None
     console.print(f"wrote {path} ({len(log)} samples, {log['t'].iloc[-1]:.1f} s simulated in "
+                  f"{time.perf_counter() - t0:.2f} s)")
+
+
+@app.command("estimate")
+def estimate_cmd(
+    log_path: Annotated[Path, typer.Argument(metavar="LOG", help="Drive log (.csv or .parquet).")],
+    out: Annotated[Path, typer.Option("--out", help="Output log of estimates (.csv or .parquet).")],
+    vehicle: VehicleOpt = "hashemi_suv",
+    velocity: Annotated[str, typer.Option(help="Velocity stage: reference | kinematic.")] = "reference",
+    force: Annotated[str, typer.Option(help="Longitudinal force: ukf | ukf_rw | pid | uio | naive.")] = "ukf",
+    normal: Annotated[str, typer.Option(help="Load transfer: dynamic | static.")] = "dynamic",
+    config: Annotated[Path | None, typer.Option(help="TOML file with a [pipeline] table "
+                                                "(overrides the stage flags).")] = None,
+) -> None:
+    """Estimate tire forces and vehicle/corner velocities from a measured log."""
+    try:
+        veh = load_vehicle(vehicle)
+        cfg = (PipelineConfig.from_toml(config) if config is not None
+               else PipelineConfig(force=force, normal=normal, velocity=velocity))
+        log = read_log(log_path, require=["measured"], wheel_radius=veh.body.wheel_radius)
+        t0 = time.perf_counter()
+        est = Pipeline(veh, cfg).run(log)
+        meta = {"vehicle": veh.name, "force": cfg.force, "normal": cfg.normal,
+                "velocity": cfg.velocity, "source": str(log_path)}
+        path = write_log(est, out, metadata=meta)
+    except (VestimError, ValueError, OSError) as exc:
+        raise _fail(exc) from None
+    console.print(f"wrote {path} ({len(est)} samples, {len(est.columns) - 1} channels, "
                   f"{time.perf_counter() - t0:.2f} s)")
 
 

@@ -61,7 +61,7 @@ class ForceConfig:
 
 
 @dataclass
-class _Inputs:
+class Inputs:
     """Measured channels of a chunk as contiguous float arrays."""
 
     t: np.ndarray
@@ -82,7 +82,7 @@ def _column(log: pd.DataFrame, name: str, default: float) -> np.ndarray:
     return np.full(len(log), default)
 
 
-def inputs_from_log(log: pd.DataFrame, vehicle: Vehicle) -> _Inputs:
+def inputs_from_log(log: pd.DataFrame, vehicle: Vehicle) -> Inputs:
     """Extract and check the measured channels the force stage needs (never ``ref_``)."""
     missing = [c for c in REQUIRED if c not in log.columns]
     if missing:
@@ -91,7 +91,7 @@ def inputs_from_log(log: pd.DataFrame, vehicle: Vehicle) -> _Inputs:
     front = road_wheel_angles(log, vehicle.body.steering_ratio)
     delta = np.zeros((len(log), 4))
     delta[:, :2] = front
-    return _Inputs(
+    return Inputs(
         t=np.ascontiguousarray(log["t"].to_numpy(dtype=float)),
         omega=np.ascontiguousarray(log[[f"omega_{c}" for c in CORNERS]].to_numpy(dtype=float)),
         torque=np.ascontiguousarray(log[[f"torque_{c}" for c in CORNERS]].to_numpy(dtype=float)),
@@ -99,6 +99,30 @@ def inputs_from_log(log: pd.DataFrame, vehicle: Vehicle) -> _Inputs:
         yaw_rate=_column(log, "yaw_rate", 0.0), roll_rate=_column(log, "roll_rate", np.nan),
         pitch_rate=_column(log, "pitch_rate", np.nan), delta=delta,
     )
+
+
+def force_columns(t: np.ndarray, res: Mapping[str, np.ndarray]) -> dict[str, np.ndarray]:
+    """Spec columns of the force stage from :meth:`ForceEstimator.advance`'s result.
+
+    ``mu_x_*``/``mu_y_*`` are 0 where F_z ≤ 1 N (a lifted wheel); ``sigma_fx_*`` only
+    for methods that have one.
+    """
+    cols: dict[str, np.ndarray] = {"t": t}
+    fz_all = res["fz"]
+    for i, c in enumerate(CORNERS):
+        fz, fx, fy = fz_all[:, i], res["fx"][:, i], res["fy"][:, i]
+        cols[f"fx_{c}"] = fx
+        cols[f"fy_{c}"] = fy
+        cols[f"fz_{c}"] = fz
+        with np.errstate(divide="ignore", invalid="ignore"):
+            cols[f"mu_x_{c}"] = np.where(fz > 1.0, fx / fz, 0.0)
+            cols[f"mu_y_{c}"] = np.where(fz > 1.0, fy / fz, 0.0)
+        if not np.all(np.isnan(res["sigma_fx"][:, i])):
+            cols[f"sigma_fx_{c}"] = res["sigma_fx"][:, i]
+        cols[f"sigma_fy_{c}"] = res["sigma_fy"][:, i]
+    cols["roll"] = res["roll"]
+    cols["pitch"] = res["pitch"]
+    return cols
 
 
 class ForceEstimator:
@@ -137,7 +161,9 @@ class ForceEstimator:
         self._lat_P = np.zeros((lat.N_X, lat.N_X))
         self._lat_state = np.zeros(10)
 
-    def _advance(self, u: _Inputs) -> dict[str, np.ndarray]:
+    def advance(self, u: Inputs) -> dict[str, np.ndarray]:
+        """Process a chunk of measured inputs; arrays of forces (n, 4), angles and road-frame
+        specific force (n,). State carries over to the next call."""
         n = u.t.shape[0]
         b = self.vehicle.body
         cfg = self.config
@@ -167,31 +193,13 @@ class ForceEstimator:
                            self._w4, self._c4, self._tau4, self._lat_x, self._lat_P,
                            self._lat_state, fy, sig_fy)
         return {"fx": fx, "sigma_fx": sig_fx, "fy": fy, "sigma_fy": sig_fy, "fz": fz,
-                "roll": roll, "pitch": pitch}
-
-    @staticmethod
-    def _frame(t: np.ndarray, res: dict[str, np.ndarray]) -> pd.DataFrame:
-        cols: dict[str, np.ndarray] = {"t": t}
-        with np.errstate(divide="ignore", invalid="ignore"):
-            for i, c in enumerate(CORNERS):
-                fz = res["fz"][:, i]
-                cols[f"fx_{c}"] = res["fx"][:, i]
-                cols[f"fy_{c}"] = res["fy"][:, i]
-                cols[f"fz_{c}"] = fz
-                cols[f"mu_x_{c}"] = np.where(fz > 1.0, res["fx"][:, i] / fz, 0.0)
-                cols[f"mu_y_{c}"] = np.where(fz > 1.0, res["fy"][:, i] / fz, 0.0)
-                if not np.all(np.isnan(res["sigma_fx"][:, i])):
-                    cols[f"sigma_fx_{c}"] = res["sigma_fx"][:, i]
-                cols[f"sigma_fy_{c}"] = res["sigma_fy"][:, i]
-        cols["roll"] = res["roll"]
-        cols["pitch"] = res["pitch"]
-        return pd.DataFrame(cols)
+                "roll": roll, "pitch": pitch, "f_x": f_x, "f_y": f_y, "f_z": f_z}
 
     def run(self, log: pd.DataFrame) -> pd.DataFrame:
         """Estimate forces over a whole log (state reset first). Returns the estimated channels."""
         self.reset()
         u = inputs_from_log(log, self.vehicle)
-        return self._frame(u.t, self._advance(u))
+        return pd.DataFrame(force_columns(u.t, self.advance(u)))
 
     def step(self, sample: Mapping[str, float]) -> dict[str, float]:
         """Advance by one sample (a mapping with the log's column names); return that row.
@@ -200,24 +208,9 @@ class ForceEstimator:
         tens of microseconds, dominated by the kernels' dispatch.
         """
         u = self._inputs_from_sample(sample)
-        res = self._advance(u)
-        out: dict[str, float] = {"t": float(u.t[0])}
-        for i, c in enumerate(CORNERS):
-            fz = float(res["fz"][0, i])
-            fx, fy = float(res["fx"][0, i]), float(res["fy"][0, i])
-            out[f"fx_{c}"] = fx
-            out[f"fy_{c}"] = fy
-            out[f"fz_{c}"] = fz
-            out[f"mu_x_{c}"] = fx / fz if fz > 1.0 else 0.0
-            out[f"mu_y_{c}"] = fy / fz if fz > 1.0 else 0.0
-            if not np.isnan(res["sigma_fx"][0, i]):
-                out[f"sigma_fx_{c}"] = float(res["sigma_fx"][0, i])
-            out[f"sigma_fy_{c}"] = float(res["sigma_fy"][0, i])
-        out["roll"] = float(res["roll"][0])
-        out["pitch"] = float(res["pitch"][0])
-        return out
+        return {k: float(v[0]) for k, v in force_columns(u.t, self.advance(u)).items()}
 
-    def _inputs_from_sample(self, sample: Mapping[str, float]) -> _Inputs:
+    def _inputs_from_sample(self, sample: Mapping[str, float]) -> Inputs:
         missing = [c for c in REQUIRED if c not in sample]
         if missing:
             raise LogFormatError(f"the force estimators need channel(s) {', '.join(missing)} "
@@ -236,7 +229,7 @@ class ForceEstimator:
         def one(name: str, default: float) -> np.ndarray:
             return np.array([float(sample.get(name, default))])
 
-        return _Inputs(
+        return Inputs(
             t=one("t", np.nan),
             omega=np.array([[float(sample[f"omega_{c}"]) for c in CORNERS]]),
             torque=np.array([[float(sample[f"torque_{c}"]) for c in CORNERS]]),

@@ -1,0 +1,1 @@
+"""Velocity estimators: reference-speed filter, kinematic baseline, tire-model corner observers."""

@@ -1,0 +1,80 @@
+"""Planar rigid-body kinematics between the CG, the wheel centres and the tire frames.
+
+Pure NumPy functions, vectorised over samples; arrays with a corner axis have
+shape (n, 4) in the order fl, fr, rl, rr. Body axes ISO 8855 (x forward, y left).
+Corner i sits at (x_i, y_i) = (l_f, t_f/2), (l_f, −t_f/2), (−l_r, t_r/2), (−l_r, −t_r/2).
+
+* Wheel-centre velocity (001 eq. (33), (42) read backwards): v_x,i = v_x − r y_i,
+  v_y,i = v_y + r x_i; the CG from a corner: v_x = v_x,i + r y_i, v_y = v_y,i − r x_i.
+* Acceleration transported to a corner (001 text after eq. (21)):
+  a_x,i = a_x − ṙ y_i − r² x_i, a_y,i = a_y + ṙ x_i − r² y_i.
+* Tire frame, rotated by the steering angle δ_i (000 eq. (28)):
+  v_xt = v_x,i cos δ + v_y,i sin δ, v_yt = −v_x,i sin δ + v_y,i cos δ, and back.
+* Slip ratio and slip angle as the spec defines them.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from vestim.io.vehicle import Vehicle
+
+
+def corner_positions(vehicle: Vehicle) -> tuple[np.ndarray, np.ndarray]:
+    """(x_i, y_i) of the four wheel centres relative to the CG, m, each shape (4,)."""
+    b = vehicle.body
+    xw = np.array([b.lf, b.lf, -b.lr, -b.lr])
+    yw = 0.5 * np.array([b.track_f, -b.track_f, b.track_r, -b.track_r])
+    return xw, yw
+
+
+def cg_to_corners(vx: np.ndarray, vy: np.ndarray, yaw_rate: np.ndarray, xw: np.ndarray,
+                  yw: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Wheel-centre velocities (n, 4) in the body frame from the CG velocity (n,) and yaw rate."""
+    return (vx[:, None] - yaw_rate[:, None] * yw[None, :],
+            vy[:, None] + yaw_rate[:, None] * xw[None, :])
+
+
+def corners_to_cg(vx_i: np.ndarray, vy_i: np.ndarray, yaw_rate: np.ndarray, xw: np.ndarray,
+                  yw: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Each corner's estimate of the CG velocity (n, 4): v_x = v_x,i + r y_i, v_y = v_y,i − r x_i."""
+    return (vx_i + yaw_rate[:, None] * yw[None, :], vy_i - yaw_rate[:, None] * xw[None, :])
+
+
+def corner_accelerations(ax: np.ndarray, ay: np.ndarray, yaw_rate: np.ndarray,
+                         yaw_acc: np.ndarray, xw: np.ndarray,
+                         yw: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Acceleration (n, 4) of each wheel centre in the body frame, m/s², from the CG's (n,)."""
+    r2 = (yaw_rate**2)[:, None]
+    return (ax[:, None] - yaw_acc[:, None] * yw[None, :] - r2 * xw[None, :],
+            ay[:, None] + yaw_acc[:, None] * xw[None, :] - r2 * yw[None, :])
+
+
+def to_tire_frame(vx: np.ndarray, vy: np.ndarray,
+                  delta: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Body-frame vectors (n, 4) rotated into each wheel's frame by its steering angle δ (n, 4)."""
+    c, s = np.cos(delta), np.sin(delta)
+    return vx * c + vy * s, -vx * s + vy * c
+
+
+def to_body_frame(vxt: np.ndarray, vyt: np.ndarray,
+                  delta: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Inverse of :func:`to_tire_frame`."""
+    c, s = np.cos(delta), np.sin(delta)
+    return vxt * c - vyt * s, vxt * s + vyt * c
+
+
+def slip_ratio(omega: np.ndarray, vxt: np.ndarray, radius: float, eps: float = 0.1) -> np.ndarray:
+    """(R ω − v_xt)/max(|R ω|, |v_xt|) (spec; magnitudes so it stays bounded at standstill and
+    when reversing); 0 where both speeds are below ``eps`` m/s."""
+    rw = radius * omega
+    den = np.maximum(np.abs(rw), np.abs(vxt))
+    with np.errstate(divide="ignore", invalid="ignore"):
+        return np.where(den > eps, (rw - vxt) / np.where(den > eps, den, 1.0), 0.0)
+
+
+def slip_angle(vxt: np.ndarray, vyt: np.ndarray, eps: float = 0.5) -> np.ndarray:
+    """atan(v_yt / v_xt) in the tire frame (spec: negative in a steady left turn); 0 below ``eps`` m/s."""
+    with np.errstate(divide="ignore", invalid="ignore"):
+        return np.where(np.abs(vxt) > eps, np.arctan(vyt / np.where(np.abs(vxt) > eps, vxt, 1.0)),
+                        0.0)
