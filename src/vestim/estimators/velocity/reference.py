@@ -55,19 +55,21 @@ class ReferenceParams:
         gate: innovation gate in standard deviations.
         r_vy: variance of the v_y ≈ r l_r pseudo-measurement at a_y = 0, (m/s)².
         k_vy: growth of its σ with |a_y|, s.
+        bias_max: bound on |b_x|, m/s² (sensor bias plus a grade of about 5 %).
         window: samples of the ω̇ difference.
     """
 
     q_vx: float = 0.02
     q_vy: float = 0.05
-    q_bias: float = 0.002
+    q_bias: float = 2.0e-4
     r_wheel: float = 0.05
-    k_mu: float = 0.1
+    k_mu: float = 1.0
     k_acc: float = 0.3
     slip_sign: float = 0.3
     gate: float = 5.0
     r_vy: float = 0.01
-    k_vy: float = 0.1
+    k_vy: float = 0.3
+    bias_max: float = 0.5
     window: int = 20
 
 
@@ -120,17 +122,18 @@ def reference_kernel(t: np.ndarray, omega: np.ndarray, torque: np.ndarray, mu_x:
                      out_trust: np.ndarray) -> None:
     """Advance the reference filter over a chunk, in place on x (3,), P (3, 3), hist, state.
 
-    ``prm`` = [q_vx, q_vy, q_bias, r_wheel, k_mu, k_acc, slip_sign, gate, r_vy, k_vy].
+    ``prm`` = [q_vx, q_vy, q_bias, r_wheel, k_mu, k_acc, slip_sign, gate, r_vy, k_vy, bias_max].
     ``hist`` (m, 5): last m samples of (t, ω_fl…ω_rr) for ω̇; ``state`` = [t_prev, started,
-    f_x, f_y, r of the previous sample]. ``extra_v``/``extra_var`` (n, m2): extra CG-speed
+    f_x, f_y, r of the previous sample, samples with every wheel rejected]. ``extra_v``/``extra_var`` (n, m2): extra CG-speed
     measurements and variances, NaN where absent. Outputs: out_v (n, 2) [v_x, v_y],
     out_sig (n, 2), out_bias (n,), out_trust (n, 4) the standard deviation used per
     wheel (inf where rejected).
     """
-    q_vx, q_vy, q_b, r_w, k_mu, k_acc, s_sign, gate, r_vy, k_vy = (
-        prm[0], prm[1], prm[2], prm[3], prm[4], prm[5], prm[6], prm[7], prm[8], prm[9])
+    q_vx, q_vy, q_b, r_w, k_mu, k_acc, s_sign, gate, r_vy, k_vy, bias_max = (
+        prm[0], prm[1], prm[2], prm[3], prm[4], prm[5], prm[6], prm[7], prm[8], prm[9], prm[10])
     m = hist.shape[0]
     h = np.zeros(3)
+    wheel_v = np.empty(4)
     for k in range(t.shape[0]):
         if state[1] == 0.0:
             v0 = 0.0
@@ -167,6 +170,7 @@ def reference_kernel(t: np.ndarray, omega: np.ndarray, torque: np.ndarray, mu_x:
         span = t[k] - hist[0, 0]
         r_now = yaw_rate[k]
         # Wheel speeds mapped to the CG, trusted by their evidence of slip.
+        accepted = 0
         for i in range(4):
             c, s = np.cos(delta[k, i]), np.sin(delta[k, i])
             vxw = x[VX] - r_now * yw[i]
@@ -183,6 +187,23 @@ def reference_kernel(t: np.ndarray, omega: np.ndarray, torque: np.ndarray, mu_x:
             h[VX] = 1.0
             res = _scalar_update(x, P, h, v_meas, sig * sig, gate)
             out_trust[k, i] = np.inf if np.isnan(res) else sig
+            wheel_v[i] = v_meas
+            if not np.isnan(res):
+                accepted += 1
+        # Recovery: every wheel rejected although none shows evidence of slip means the
+        # filter, not the wheels, has drifted. After ``window`` such samples, restart v_x
+        # from the median wheel speed (an ESC unit's reference-speed reset).
+        state[5] = state[5] + 1.0 if accepted == 0 else 0.0
+        if state[5] >= m:
+            x[VX] = np.median(wheel_v)
+            for j in range(3):
+                P[VX, j] = 0.0
+                P[j, VX] = 0.0
+            P[VX, VX] = r_w
+            state[5] = 0.0
+        # The bias is physically bounded (sensor bias plus a grade of at most ~5 %): a larger
+        # value means slip or a spinning car is being explained away as bias.
+        x[BX] = min(max(x[BX], -bias_max), bias_max)
         # Extra CG-speed measurements (fusion with the corner-based estimators).
         for j in range(extra_v.shape[1]):
             if not np.isnan(extra_v[k, j]):
@@ -224,14 +245,14 @@ class ReferenceFilter:
         self.params = params or ReferenceParams()
         p = self.params
         self._prm = np.array([p.q_vx, p.q_vy, p.q_bias, p.r_wheel, p.k_mu, p.k_acc, p.slip_sign,
-                              p.gate, p.r_vy, p.k_vy])
+                              p.gate, p.r_vy, p.k_vy, p.bias_max])
         self.reset()
 
     def reset(self) -> None:
         self._x = np.zeros(3)
         self._P = np.zeros((3, 3))
         self._hist = np.zeros((self.params.window, 5))
-        self._state = np.zeros(5)
+        self._state = np.zeros(6)
 
     def advance(self, t: np.ndarray, omega: np.ndarray, torque: np.ndarray, mu_x: np.ndarray,
                 rear_slip: np.ndarray, f_x: np.ndarray, f_y: np.ndarray, yaw_rate: np.ndarray,
