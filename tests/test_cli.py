@@ -50,3 +50,24 @@ def test_simulate_bad_vehicle_file_names_the_key(tmp_path):
                                  "--out", str(tmp_path / "x.csv")])
     assert result.exit_code == 2
     assert "mass" in result.output
+
+
+def test_score_and_plot_commands(tmp_path):
+    """simulate → estimate → score (table and JSON) → plot, end to end through the CLI."""
+    import json
+    from pathlib import Path
+
+    sim = tmp_path / "sim.parquet"
+    est = tmp_path / "est.parquet"
+    assert runner.invoke(app, ["simulate", "lc_wet", "--out", str(sim)]).exit_code == 0
+    assert runner.invoke(app, ["estimate", str(sim), "--out", str(est)]).exit_code == 0
+    table = runner.invoke(app, ["score", str(est), str(sim)])
+    assert table.exit_code == 0 and "| vx |" in table.stdout
+    as_json = runner.invoke(app, ["score", str(est), str(sim), "--json"])
+    records = json.loads(as_json.stdout)
+    vx = next(r for r in records if r["channel"] == "vx")
+    assert vx["nrms_pct"] < 2.0  # lane change on wet: the reference filter measures ~0.1 %
+    plots = runner.invoke(app, ["plot", str(est), str(sim), "--out", str(tmp_path / "png")])
+    assert plots.exit_code == 0
+    files = plots.stdout.split()
+    assert files and all(Path(f).read_bytes()[:8] == b"\x89PNG\r\n\x1a\n" for f in files)

@@ -17,7 +17,9 @@ from rich.table import Table
 
 from vestim.errors import VestimError
 from vestim.io import load_vehicle, read_log, write_log
+from vestim.metrics import score, to_json, to_markdown
 from vestim.pipeline import Pipeline, PipelineConfig
+from vestim.report.figures import plot_estimate
 from vestim.report.plots import plot_simulation, save_figure
 from vestim.sim import DEFAULT_SET, SensorModel, get_maneuver, maneuver_names, simulate
 from vestim.sim.maneuvers import Maneuver, describe
@@ -106,6 +108,41 @@ def estimate_cmd(
         raise _fail(exc) from None
     console.print(f"wrote {path} ({len(est)} samples, {len(est.columns) - 1} channels, "
                   f"{time.perf_counter() - t0:.2f} s)")
+
+
+@app.command("score")
+def score_cmd(
+    estimate: Annotated[Path, typer.Argument(metavar="ESTIMATE", help="Log of estimates.")],
+    reference: Annotated[Path, typer.Argument(metavar="REFERENCE",
+                                              help="Log with ref_ channels (e.g. a simulator log).")],
+    json_out: Annotated[bool, typer.Option("--json", help="Print JSON instead of a table.")] = False,
+) -> None:
+    """NRMS (000's definition), RMSE and max error per channel against the ref_ channels."""
+    try:
+        table = score(read_log(estimate), read_log(reference), estimate_name=str(estimate),
+                      reference_name=str(reference))
+    except (VestimError, ValueError, OSError) as exc:
+        raise _fail(exc) from None
+    typer.echo(to_json(table) if json_out else to_markdown(table))
+
+
+@app.command("plot")
+def plot_cmd(
+    estimate: Annotated[Path, typer.Argument(metavar="ESTIMATE", help="Log of estimates.")],
+    reference: Annotated[Path | None, typer.Argument(metavar="[REFERENCE]",
+                                                     help="Log with ref_ channels.")] = None,
+    out: Annotated[Path, typer.Option("--out", help="Output folder for the PNGs.")] = Path("out/plots"),
+    vehicle: VehicleOpt = "hashemi_suv",
+) -> None:
+    """Draw the papers' figure types (speeds with wheel speeds, CG and corner velocities, forces)."""
+    try:
+        veh = load_vehicle(vehicle)
+        files = plot_estimate(read_log(estimate), read_log(reference) if reference else None,
+                              wheel_radius=veh.body.wheel_radius, out_dir=out)
+    except (VestimError, ValueError, OSError) as exc:
+        raise _fail(exc) from None
+    for f in files:
+        typer.echo(str(f))
 
 
 @app.command("demo")
