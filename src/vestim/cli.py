@@ -10,6 +10,7 @@ import time
 from pathlib import Path
 from typing import Annotated
 
+import numpy as np
 import typer
 from rich.console import Console
 from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
@@ -151,26 +152,37 @@ def demo_cmd(
     vehicle: VehicleOpt = "hashemi_suv",
     seed: Annotated[int, typer.Option(help="Sensor-noise seed.")] = 0,
 ) -> None:
-    """Simulate the default maneuver set; write logs, overview plots and a summary table."""
-    table = Table(title=f"vestim demo: default maneuver set on {vehicle}")
-    for col in ("maneuver", "samples", "vx start→end [m/s]", "max |slip|", "min Fz [N]"):
-        table.add_column(col)
+    """Simulate the default maneuver set, estimate, score and plot; print the NRMS table."""
+    table = Table(title=f"vestim demo on {vehicle}: NRMS [%] of the default pipeline "
+                        "(worst corner for per-corner channels)")
+    cols = ("vx", "vy", "vx_*", "fx_*", "fy_*", "fz_*")
+    for col in ("maneuver", *cols, "R·ω̄ vx"):
+        table.add_column(col, justify="right")
     try:
+        veh = load_vehicle(vehicle)
+        pipeline = Pipeline(veh)
         for name in DEFAULT_SET:
             m = get_maneuver(name)
-            veh, log = _run(m, vehicle, seed, 200.0, f"simulating {name}")
+            _, log = _run(m, vehicle, seed, 200.0, f"simulating {name}")
             write_log(log, out / f"{name}.parquet", metadata=log.attrs)
-            fig = plot_simulation(log, veh.body.wheel_radius, title=f"{name}: {m.description}")
-            save_figure(fig, out / f"{name}.png")
-            slip = log.filter(like="ref_slip_ratio_").abs().to_numpy().max()
-            fz = log.filter(like="ref_fz_").to_numpy().min()
-            table.add_row(name, str(len(log)),
-                          f"{log['ref_vx'].iloc[0]:.1f}→{log['ref_vx'].iloc[-1]:.1f}",
-                          f"{slip:.2f}", f"{fz:.0f}")
+            save_figure(plot_simulation(log, veh.body.wheel_radius,
+                                        title=f"{name}: {m.description}"), out / f"{name}.png")
+            est = pipeline.run(log)
+            write_log(est, out / f"{name}_estimate.parquet", metadata={"maneuver": name})
+            plot_estimate(est, log, wheel_radius=veh.body.wheel_radius, out_dir=out / name)
+            scores = score(est, log).set_index("channel")["nrms_pct"]
+            cells = []
+            for c in cols:
+                cells.append(scores.filter(regex=f"^{c.replace('*', '(fl|fr|rl|rr)')}$").max())
+            omega = log[[f"omega_{c}" for c in ("fl", "fr", "rl", "rr")]].to_numpy()
+            naive = veh.body.wheel_radius * omega.mean(axis=1)
+            ref = log["ref_vx"].to_numpy()
+            cells.append(100 * float(np.sqrt(np.mean((naive - ref) ** 2)) / np.abs(ref).max()))
+            table.add_row(name, *(f"{v:.1f}" for v in cells))
     except (VestimError, ValueError, OSError) as exc:
         raise _fail(exc) from None
     Console().print(table)
-    Console().print(f"logs (.parquet) and overview plots (.png) written to {out}/")
+    Console().print(f"logs, estimates (.parquet) and figures (.png) written to {out}/")
 
 
 def main() -> None:  # pragma: no cover - console entry point
