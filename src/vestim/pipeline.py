@@ -152,7 +152,9 @@ class Pipeline:
         """Estimate over a whole log (state reset first); returns the estimated channels."""
         self.reset()
         u = inputs_from_log(log, self.vehicle)
-        return pd.DataFrame(self._columns(u.t, self._advance(u)))
+        cols = self._columns(u.t, self._advance(u))
+        # One 2-D block: building a DataFrame from a dict of columns copies them twice.
+        return pd.DataFrame(np.column_stack(list(cols.values())), columns=list(cols))
 
     def step(self, sample: Mapping[str, float]) -> dict[str, float]:
         """Advance by one sample (mapping of the log's column names); return that row."""

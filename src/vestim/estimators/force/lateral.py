@@ -73,6 +73,7 @@ class LateralParams:
     slip_scale: float = 0.1
 
 
+@njit(**_JIT)
 def split_weights(fz: np.ndarray, omega: np.ndarray, torque: np.ndarray, yaw_rate: np.ndarray,
                   radius: float, yw: np.ndarray, load_exponent: float,
                   slip_scale: float) -> np.ndarray:
@@ -85,10 +86,21 @@ def split_weights(fz: np.ndarray, omega: np.ndarray, torque: np.ndarray, yaw_rat
     A wheel spinning or locking while another rolls has |λ_i| ≫ λ_0; when all
     four slip alike none is singled out.
     """
-    v = radius * omega + yaw_rate[:, None] * yw[None, :]
-    v_ref = np.where(torque >= 0.0, v.min(axis=1, keepdims=True), v.max(axis=1, keepdims=True))
-    lam = (v - v_ref) / np.maximum(np.maximum(np.abs(v), np.abs(v_ref)), 1.0)
-    return np.maximum(fz, 0.0) ** load_exponent / (1.0 + (lam / slip_scale) ** 2)
+    n = fz.shape[0]
+    out = np.empty((n, 4))
+    v = np.empty(4)
+    for k in range(n):
+        v_min = np.inf
+        v_max = -np.inf
+        for i in range(4):
+            v[i] = radius * omega[k, i] + yaw_rate[k] * yw[i]
+            v_min = min(v_min, v[i])
+            v_max = max(v_max, v[i])
+        for i in range(4):
+            v_ref = v_min if torque[k, i] >= 0.0 else v_max
+            lam = (v[i] - v_ref) / max(abs(v[i]), abs(v_ref), 1.0)
+            out[k, i] = max(fz[k, i], 0.0) ** load_exponent / (1.0 + (lam / slip_scale) ** 2)
+    return out
 
 
 @njit(**_JIT)

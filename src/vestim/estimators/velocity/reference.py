@@ -75,14 +75,14 @@ class ReferenceParams:
 
 @njit(**_JIT)
 def _scalar_update(x: np.ndarray, P: np.ndarray, h: np.ndarray, z: float, r: float,
-                   gate: float) -> float:
+                   gate: float, ph: np.ndarray) -> float:
     """Kalman update with a scalar measurement z = h·x + v, var(v) = r; returns the innovation.
 
-    Joseph form, so P stays symmetric positive semi-definite under round-off.
-    Measurements beyond ``gate`` innovation standard deviations are rejected (NaN returned).
+    P ← P − (P h)(P h)ᵀ/s, symmetrised (for the optimal gain this equals the Joseph
+    form); ``ph`` is scratch of length n. Measurements beyond ``gate`` innovation
+    standard deviations are rejected (NaN returned, state untouched).
     """
     n = x.shape[0]
-    ph = np.empty(n)
     for i in range(n):
         acc = 0.0
         for j in range(n):
@@ -98,16 +98,11 @@ def _scalar_update(x: np.ndarray, P: np.ndarray, h: np.ndarray, z: float, r: flo
         return np.nan
     for i in range(n):
         x[i] += ph[i] / s * innov
-    # Joseph form: P ← (I − k hᵀ) P (I − k hᵀ)ᵀ + r k kᵀ with k = P h / s.
-    k = ph / s
-    A = np.eye(n)
     for i in range(n):
-        for j in range(n):
-            A[i, j] -= k[i] * h[j]
-    Pn = A @ P @ A.T
-    for i in range(n):
-        for j in range(n):
-            P[i, j] = 0.5 * (Pn[i, j] + Pn[j, i]) + r * k[i] * k[j]
+        for j in range(i, n):
+            v = P[i, j] - ph[i] * ph[j] / s
+            P[i, j] = v
+            P[j, i] = v
     return innov
 
 
@@ -124,7 +119,8 @@ def reference_kernel(t: np.ndarray, omega: np.ndarray, torque: np.ndarray, mu_x:
 
     ``prm`` = [q_vx, q_vy, q_bias, r_wheel, k_mu, k_acc, slip_sign, gate, r_vy, k_vy, bias_max].
     ``hist`` (m, 5): last m samples of (t, ω_fl…ω_rr) for ω̇; ``state`` = [t_prev, started,
-    f_x, f_y, r of the previous sample, samples with every wheel rejected]. ``extra_v``/``extra_var`` (n, m2): extra CG-speed
+    f_x, f_y, r of the previous sample, samples with every wheel rejected]. ``extra_v``/
+    ``extra_var`` (n, m2): extra CG-speed
     measurements and variances, NaN where absent. Outputs: out_v (n, 2) [v_x, v_y],
     out_sig (n, 2), out_bias (n,), out_trust (n, 4) the standard deviation used per
     wheel (inf where rejected).
@@ -133,6 +129,9 @@ def reference_kernel(t: np.ndarray, omega: np.ndarray, torque: np.ndarray, mu_x:
         prm[0], prm[1], prm[2], prm[3], prm[4], prm[5], prm[6], prm[7], prm[8], prm[9], prm[10])
     m = hist.shape[0]
     h = np.zeros(3)
+    ph = np.empty(3)
+    F = np.empty((3, 3))
+    FP = np.empty((3, 3))
     wheel_v = np.empty(4)
     for k in range(t.shape[0]):
         if state[1] == 0.0:
@@ -158,12 +157,24 @@ def reference_kernel(t: np.ndarray, omega: np.ndarray, torque: np.ndarray, mu_x:
             # Prediction: v̇x = f_x − b + r v_y, v̇y = f_y − r v_x (inputs of the previous sample).
             x[VX] = vx + dt * (fxp - x[BX] + rp * vy)
             x[VY] = vy + dt * (fyp - rp * vx)
-            F = np.eye(3)
+            for i in range(3):
+                for j in range(3):
+                    F[i, j] = 1.0 if i == j else 0.0
             F[VX, VY] = dt * rp
             F[VX, BX] = -dt
             F[VY, VX] = -dt * rp
-            Pn = F @ P @ F.T
-            P[:, :] = Pn
+            for i in range(3):  # FP
+                for j in range(3):
+                    acc = 0.0
+                    for q in range(3):
+                        acc += F[i, q] * P[q, j]
+                    FP[i, j] = acc
+            for i in range(3):  # P = FP Fᵀ
+                for j in range(3):
+                    acc = 0.0
+                    for q in range(3):
+                        acc += FP[i, q] * F[j, q]
+                    P[i, j] = acc
             P[VX, VX] += q_vx * dt
             P[VY, VY] += q_vy * dt
             P[BX, BX] += q_b * dt
@@ -185,7 +196,7 @@ def reference_kernel(t: np.ndarray, omega: np.ndarray, torque: np.ndarray, mu_x:
                 sig *= 1.0 + (innov_pred / s_sign) ** 2
             h[:] = 0.0
             h[VX] = 1.0
-            res = _scalar_update(x, P, h, v_meas, sig * sig, gate)
+            res = _scalar_update(x, P, h, v_meas, sig * sig, gate, ph)
             out_trust[k, i] = np.inf if np.isnan(res) else sig
             wheel_v[i] = v_meas
             if not np.isnan(res):
@@ -209,12 +220,12 @@ def reference_kernel(t: np.ndarray, omega: np.ndarray, torque: np.ndarray, mu_x:
             if not np.isnan(extra_v[k, j]):
                 h[:] = 0.0
                 h[VX] = 1.0
-                _scalar_update(x, P, h, extra_v[k, j], extra_var[k, j], gate)
+                _scalar_update(x, P, h, extra_v[k, j], extra_var[k, j], gate, ph)
         # v_y ≈ r l_r + v_x α_r with the rear slip angle α_r = −F_yr/C_yr (weak near the limit).
         sig_vy = np.sqrt(r_vy) + k_vy * abs(f_y[k])
         h[:] = 0.0
         h[VY] = 1.0
-        _scalar_update(x, P, h, r_now * lr + x[VX] * rear_slip[k], sig_vy * sig_vy, 1e9)
+        _scalar_update(x, P, h, r_now * lr + x[VX] * rear_slip[k], sig_vy * sig_vy, 1e9, ph)
         # History for ω̇, and inputs held over the next interval.
         for j in range(m - 1):
             for col in range(5):
