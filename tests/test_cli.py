@@ -71,3 +71,17 @@ def test_score_and_plot_commands(tmp_path):
     assert plots.exit_code == 0
     files = plots.stdout.split()
     assert files and all(Path(f).read_bytes()[:8] == b"\x89PNG\r\n\x1a\n" for f in files)
+
+
+def test_design_commands(tmp_path):
+    """design lpv writes a gains file that design check certifies; bad gains exit non-zero."""
+    gains = tmp_path / "gains.toml"
+    res = runner.invoke(app, ["design", "lpv", "--out", str(gains)])
+    assert res.exit_code == 0, res.output
+    check = runner.invoke(app, ["design", "check", "--gains", str(gains)])
+    assert check.exit_code == 0, check.output
+    assert "VERIFIED" in check.stdout
+    bad = tmp_path / "bad.toml"
+    bad.write_text("[longitudinal]\nomega = [0.0]\n")
+    res = runner.invoke(app, ["design", "check", "--gains", str(bad)])
+    assert res.exit_code == 2 and "Traceback" not in res.output

@@ -146,6 +146,62 @@ def plot_cmd(
         typer.echo(str(f))
 
 
+design_app = typer.Typer(no_args_is_help=True, help="Observer design: LMI certificates, LPV gains.")
+analyze_app = typer.Typer(no_args_is_help=True, help="Offline analysis of observers over logs.")
+app.add_typer(design_app, name="design")
+app.add_typer(analyze_app, name="analyze")
+
+
+@design_app.command("lpv")
+def design_lpv_cmd(
+    out: Annotated[Path, typer.Option("--out", help="Gains file to write (TOML).")],
+    vehicle: VehicleOpt = "hashemi_suv",
+) -> None:
+    """Synthesise wheel-speed-scheduled LPV observer gains (001 eq. (30)–(32), 004 eq. (26)–(35))."""
+    from vestim.design import design_lpv
+
+    try:
+        schedule = design_lpv(load_vehicle(vehicle))
+        path = schedule.save_gains(out)
+    except (VestimError, ValueError, OSError) as exc:
+        raise _fail(exc) from None
+    console.print(f"wrote {path}")
+
+
+@design_app.command("check")
+def design_check_cmd(
+    vehicle: VehicleOpt = "hashemi_suv",
+    gains: Annotated[Path | None, typer.Option(help="Gains file; default: the papers' constant "
+                                               "gains.")] = None,
+) -> None:
+    """Certify the observer error dynamics (affine quadratic stability, H∞ γ); exit 1 if not verified."""
+    from vestim.design import check_design
+
+    try:
+        cert = check_design(load_vehicle(vehicle), gains)
+    except (VestimError, ValueError, OSError) as exc:
+        raise _fail(exc) from None
+    typer.echo(cert.summary())
+    if not cert.verified:
+        raise typer.Exit(code=1)
+
+
+@analyze_app.command("observability")
+def analyze_observability_cmd(
+    log_path: Annotated[Path, typer.Argument(metavar="LOG", help="Drive log.")],
+    out: Annotated[Path, typer.Option("--out", help="Output folder (figures and summary).")],
+    vehicle: VehicleOpt = "hashemi_suv",
+) -> None:
+    """Observability rank, Gramians and stochastic observability tests over a log (000 Sec. III)."""
+    from vestim.design import analyze_observability
+
+    try:
+        report = analyze_observability(read_log(log_path), load_vehicle(vehicle), out)
+    except (VestimError, ValueError, OSError) as exc:
+        raise _fail(exc) from None
+    typer.echo(report.summary())
+
+
 @app.command("demo")
 def demo_cmd(
     out: Annotated[Path, typer.Option("--out", help="Output folder.")] = Path("out/demo"),

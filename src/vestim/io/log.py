@@ -16,7 +16,6 @@ import csv
 import io
 import math
 import os
-import uuid
 from collections.abc import Iterable, Mapping
 from pathlib import Path
 from typing import Any
@@ -30,6 +29,7 @@ import pyarrow.parquet as pq
 from vestim.constants import G
 from vestim.errors import LogFormatError
 from vestim.io import channels as ch
+from vestim.io.files import atomic_path
 
 __all__ = ["read_log", "road_wheel_angles", "validate_log", "write_log"]
 
@@ -159,12 +159,7 @@ def write_log(
                     f"({type(key).__name__}: {type(value).__name__})"
                 )
     out = df[ch.canonical_order(df.columns)]
-    p.parent.mkdir(parents=True, exist_ok=True)
-    # os.open with mode 0o666 applies the umask, as a plain open would; tempfile.mkstemp
-    # would leave the final file readable by its owner only.
-    tmp = p.parent / f".{p.name}.{uuid.uuid4().hex}.tmp"
-    os.close(os.open(tmp, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o666))
-    try:
+    with atomic_path(p) as tmp:
         table = pa.Table.from_pandas(out, preserve_index=False)
         if kind == "csv":
             _write_csv(table, tmp)
@@ -175,10 +170,6 @@ def write_log(
                                for k, v in metadata.items()})
                 table = table.replace_schema_metadata(merged)
             pq.write_table(table, tmp)
-        os.replace(tmp, p)
-    except BaseException:
-        tmp.unlink(missing_ok=True)
-        raise
     return p
 
 
