@@ -23,7 +23,7 @@ def strip(log: pd.DataFrame) -> pd.DataFrame:
     return log.drop(columns=[c for c in log.columns if c.startswith("ref_")])
 
 
-@pytest.mark.parametrize("velocity", ["reference", "kinematic"])
+@pytest.mark.parametrize("velocity", ["reference", "kinematic", "fused", "kf", "lpv"])
 def test_step_equals_run(log, velocity):
     """Feeding the log sample by sample gives the batch result exactly."""
     part = strip(log).iloc[:200]
@@ -33,9 +33,11 @@ def test_step_equals_run(log, velocity):
     np.testing.assert_allclose(rows.to_numpy(), batch.to_numpy(), rtol=1e-12, atol=1e-9)
 
 
-def test_never_reads_reference_channels(log):
-    a = Pipeline(SUV).run(log)
-    b = Pipeline(SUV).run(strip(log))
+@pytest.mark.parametrize("velocity", ["reference", "fused", "ukf"])
+def test_never_reads_reference_channels(log, velocity):
+    cfg = PipelineConfig(velocity=velocity)
+    a = Pipeline(SUV, cfg).run(log)
+    b = Pipeline(SUV, cfg).run(strip(log))
     pd.testing.assert_frame_equal(a, b)
 
 

@@ -88,7 +88,8 @@ def estimate_cmd(
     log_path: Annotated[Path, typer.Argument(metavar="LOG", help="Drive log (.csv or .parquet).")],
     out: Annotated[Path, typer.Option("--out", help="Output log of estimates (.csv or .parquet).")],
     vehicle: VehicleOpt = "hashemi_suv",
-    velocity: Annotated[str, typer.Option(help="Velocity stage: reference | kinematic.")] = "reference",
+    velocity: Annotated[str, typer.Option(help="Velocity stage: reference | fused | kinematic | kf | "
+                                          "ukf | lpv.")] = "reference",
     force: Annotated[str, typer.Option(help="Longitudinal force: ukf | ukf_rw | pid | uio | naive.")] = "ukf",
     normal: Annotated[str, typer.Option(help="Load transfer: dynamic | static.")] = "dynamic",
     config: Annotated[Path | None, typer.Option(help="TOML file with a [pipeline] table "

@@ -3,7 +3,8 @@
 Stages are chosen by name in a :class:`PipelineConfig` (CLI flags or a
 ``[pipeline]`` TOML section): the force stage (``force``: ukf | ukf_rw | pid |
 uio | naive; ``normal``: dynamic | static) and the velocity stage
-(``velocity``: reference | kinematic). ``run(log)`` processes a whole log and
+(``velocity``: fused | reference | kinematic | kf | ukf | lpv). ``run(log)``
+processes a whole log and
 ``step(sample)`` one sample; both advance the same compiled kernels on the same
 state, so feeding a log sample by sample reproduces the batch result.
 
@@ -31,12 +32,14 @@ from vestim.errors import VestimError
 from vestim.estimators.force import ForceConfig, ForceEstimator
 from vestim.estimators.force.estimator import force_columns, inputs_from_log
 from vestim.estimators.force.longitudinal import METHODS as FORCE_METHODS
+from vestim.estimators.velocity.corner import CornerVelocityEstimator, CornerVelocityInput
 from vestim.estimators.velocity.kinematic import KinematicIntegrator
 from vestim.estimators.velocity.reference import ReferenceFilter, ReferenceParams
 from vestim.io.vehicle import Vehicle
 from vestim.models import kinematics as kin
 
-VELOCITY_METHODS: tuple[str, ...] = ("reference", "kinematic")
+VELOCITY_METHODS: tuple[str, ...] = ("fused", "reference", "kinematic", "kf", "ukf", "lpv")
+CORNER_METHODS = {"kf": "lugre_kf", "ukf": "lugre_ukf", "lpv": "lpv"}
 
 
 class PipelineConfigError(VestimError, ValueError):
@@ -50,7 +53,11 @@ class PipelineConfig:
     Attributes:
         force: longitudinal force method (see :mod:`vestim.estimators.force.longitudinal`).
         normal: elastic load transfer, "dynamic" or "static".
-        velocity: "reference" (ABS/ESC-style filter, default) or "kinematic" (000 eq. (15)).
+        velocity: "reference" (default: the ABS/ESC-style filter), "fused" (the reference
+            filter with the LuGre KF corner estimates as extra measurements), "kinematic"
+            (000 eq. (15)), or a corner observer mapped to the CG with fixed axle
+            weights η1 = η2 = 0.5 (001 eq. (34)): "kf" (000 eq. (16)–(23)), "ukf"
+            (003 Alg. 1), "lpv" (001 eq. (22)–(24), (36)–(38)).
         reference: parameters of the reference filter.
     """
 
@@ -98,12 +105,51 @@ class Pipeline:
         self.reference = ReferenceFilter(b.wheel_radius, b.lr, self._xw, self._yw,
                                          self.config.reference)
         self.kinematic = KinematicIntegrator(b.wheel_radius)
+        method = self.config.velocity
+        corner_method = CORNER_METHODS.get(method, "lugre_kf" if method == "fused" else None)
+        self.corner = (CornerVelocityEstimator(vehicle, corner_method)
+                       if corner_method is not None else None)
+        # The fused filter: a second reference filter that also takes the corner estimates.
+        self.fused = ReferenceFilter(b.wheel_radius, b.lr, self._xw, self._yw,
+                                     self.config.reference)
+        self._prev = np.array([np.nan, 0.0])  # (t, yaw rate) of the previous sample, for ṙ
 
     def reset(self) -> None:
         """Forget every stage's state."""
         self.force.reset()
         self.reference.reset()
         self.kinematic.reset()
+        self.fused.reset()
+        if self.corner is not None:
+            self.corner.reset()
+        self._prev = np.array([np.nan, 0.0])
+
+    def _yaw_acceleration(self, t: np.ndarray, r: np.ndarray) -> np.ndarray:
+        """Backward difference of the gyro across chunk boundaries (0 at the first sample)."""
+        tt = np.concatenate(([self._prev[0]], t))
+        rr = np.concatenate(([self._prev[1]], r))
+        with np.errstate(invalid="ignore"):
+            acc = np.diff(rr) / np.diff(tt)
+        self._prev = np.array([t[-1], r[-1]])
+        return np.nan_to_num(acc, nan=0.0)
+
+    def _corners(self, u: Any, res: dict[str, np.ndarray], mu_x: np.ndarray,
+                 vy: np.ndarray) -> Any:
+        """Run the corner observer (inputs as in corner_inputs: 001 text after eq. (21))."""
+        assert self.corner is not None
+        yaw_acc = self._yaw_acceleration(u.t, u.yaw_rate)
+        ax_i, ay_i = kin.corner_accelerations(res["f_x"], res["f_y"], u.yaw_rate, yaw_acc,
+                                              self._xw, self._yw)
+        a_xt, a_yt = kin.to_tire_frame(ax_i, ay_i, u.delta)
+        vx_guess = self.vehicle.body.wheel_radius * u.omega.mean(axis=1)
+        vx_i, vy_i = kin.cg_to_corners(vx_guess, vy, u.yaw_rate, self._xw, self._yw)
+        _, vyt = kin.to_tire_frame(vx_i, vy_i, u.delta)
+        fz = res["fz"]
+        with np.errstate(divide="ignore", invalid="ignore"):
+            mu_y = np.where(fz > 1.0, res["fy"] / fz, 0.0)
+        inp = CornerVelocityInput(t=u.t, omega=u.omega, mu_x=mu_x, a_xt=a_xt, delta=u.delta,
+                                  yaw_rate=u.yaw_rate, mu_y=mu_y, a_yt=a_yt, vyt=vyt)
+        return self.corner.advance(inp)
 
     def _advance(self, u: Any) -> dict[str, np.ndarray]:
         res = self.force.advance(u)
@@ -112,14 +158,37 @@ class Pipeline:
             mu_x = np.where(fz > 1.0, res["fx"] / fz, 0.0)
             c_yr = self._cy_norm * (fz[:, 2] + fz[:, 3])
             rear_slip = np.where(c_yr > 1.0, -(res["fy"][:, 2] + res["fy"][:, 3]) / c_yr, 0.0)
-        if self.config.velocity == "reference":
-            vel = self.reference.advance(u.t, u.omega, u.torque, np.ascontiguousarray(mu_x),
-                                         rear_slip, res["f_x"], res["f_y"], u.yaw_rate, u.delta)
-            v, sig, bias = vel["v"], vel["sigma"], vel["bias"]
-        else:
+        method = self.config.velocity
+        n = u.t.shape[0]
+        if method == "kinematic":
             v = self.kinematic.advance(u.t, u.omega, res["f_x"], res["f_y"], u.yaw_rate)
             sig = np.full_like(v, np.nan)
-            bias = np.full(v.shape[0], np.nan)
+            bias = np.full(n, np.nan)
+        else:
+            mu_x_c = np.ascontiguousarray(mu_x)
+            vel = self.reference.advance(u.t, u.omega, u.torque, mu_x_c, rear_slip, res["f_x"],
+                                         res["f_y"], u.yaw_rate, u.delta)
+            v, sig, bias = vel["v"], vel["sigma"], vel["bias"]
+            if self.corner is not None:
+                out = self._corners(u, res, mu_x_c, v[:, 1])
+                vx_b, _ = kin.to_body_frame(out.vxt, np.where(np.isnan(out.vyt), 0.0, out.vyt),
+                                            u.delta)
+                vx_cg, _ = kin.corners_to_cg(vx_b, np.zeros_like(vx_b), u.yaw_rate, self._xw,
+                                             self._yw)
+                if method == "fused":
+                    # Corner estimates are information where the wheel speeds have none:
+                    # trusted (σ = sigma_corner_slip) while a corner is in high slip, weak
+                    # (σ = sigma_corner) otherwise, when the wheel speeds already count.
+                    p = self.config.reference
+                    sd = np.where(out.high_slip, p.sigma_corner_slip, p.sigma_corner)
+                    vel = self.fused.advance(u.t, u.omega, u.torque, mu_x_c, rear_slip,
+                                             res["f_x"], res["f_y"], u.yaw_rate, u.delta,
+                                             vx_cg, sd**2)
+                    v, sig, bias = vel["v"], vel["sigma"], vel["bias"]
+                else:
+                    # Fixed axle weights η1 = η2 = 0.5 (001 eq. (34)); v_y from the reference filter.
+                    v = np.column_stack((vx_cg.mean(axis=1), v[:, 1]))
+                    sig = np.full_like(v, np.nan)
         vx_i, vy_i = kin.cg_to_corners(v[:, 0], v[:, 1], u.yaw_rate, self._xw, self._yw)
         vxt, vyt = kin.to_tire_frame(vx_i, vy_i, u.delta)
         res.update({"v": v, "sigma_v": sig, "bias": bias, "vx_i": vx_i, "vy_i": vy_i,

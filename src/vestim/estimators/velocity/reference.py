@@ -56,6 +56,8 @@ class ReferenceParams:
         r_vy: variance of the v_y ≈ r l_r pseudo-measurement at a_y = 0, (m/s)².
         k_vy: growth of its σ with |a_y|, s.
         bias_max: bound on |b_x|, m/s² (sensor bias plus a grade of about 5 %).
+        sigma_corner, sigma_corner_slip: one-sigma (m/s) given by the fused pipeline to a
+            corner observer's CG speed outside and inside its high-slip mode.
         window: samples of the ω̇ difference.
     """
 
@@ -71,6 +73,8 @@ class ReferenceParams:
     k_vy: float = 0.3
     bias_max: float = 0.5
     window: int = 20
+    sigma_corner: float = 5.0
+    sigma_corner_slip: float = 3.0
 
 
 @njit(**_JIT)

@@ -1,0 +1,423 @@
+"""LuGre-based time-varying Kalman (000) and unscented Kalman (003) corner velocity estimators.
+
+Model per corner (000 eq. (17)–(19), 003 eq. (1)–(4)), state x = [z̄_x, v_rx, ż̄_x]
+(:class:`vestim.models.lpv.KalmanState`)::
+
+    ż̄_x = v_rx − κ_x R|ω| z̄_x + Ω_z                  (000 eq. (17); Ω_z the road-friction term)
+    v̇_rx = R ω̇ − v̇_xt + Ω_a                          (000 eq. (18))
+    z̄̈_x = v̇_rx − κ_x R (d|ω|/dt z̄_x + |ω| ż̄_x)        (time derivative of eq. (17))
+    μ_x = σ0x z̄_x + σ2x v_rx + σ1x ż̄_x + Γ             (000 eq. (19) output)
+
+i.e. ẋ = A(t) x + B u, A = [[−κR|ω|, 1, 0], [0, 0, 0], [−κR d|ω|/dt, 0, −κR|ω|]],
+B = [0, 1, 1]ᵀ (000 eq. (19) with M⁻¹ multiplied out; 003 eq. (3)–(4) print these
+A_c, B_c directly), u = R ω̇ − v̇_xt. 000 prints the input as "(R_e v)" and the
+third row's input as 0 before M⁻¹; M⁻¹ = [[1,0,0],[0,1,0],[0,1,1]] moves the
+input into the third row, as 003's B_c = [0 1 1]ᵀ confirms. The output matrix is
+C = [σ0x, σ2x, σ1x] (003 prints it transposed, C_cᵀ; it is a row).
+
+Discretisation by step invariance (000 text before eq. (21)): A_k = e^{A h},
+B_k = ∫_0^h e^{Aτ}B dτ, in closed form (:func:`~.corner_discrete.kf_transition`).
+
+Filters:
+
+* ``kf`` — 000 eq. (21)–(22) in filter form: predict x⁻ = A_k x + B_k u,
+  P⁻ = A_k P A_kᵀ + Q̄, then update with μ_x,k (Joseph form, so P stays symmetric
+  positive definite). 000's one-step predictor (21) is the same recursion with
+  the update and the prediction fused; the filter form is used so that the
+  estimate at sample k already contains μ_x,k.
+* ``ukf`` — 003 Algorithm 1 with the papers' sigma-point scaling (2N + 1 = 7
+  points, :mod:`vestim.filters.ukf`). The sigma points are redrawn from
+  (x⁻, P⁻ + Q̄) before the output is predicted: Algorithm 1 reuses the propagated
+  points, which leaves Q̄ out of P_ŷŷ and P_x̂ŷ; redrawing is the consistent form
+  (the force stage does the same). On this model, which is linear in the state,
+  the unscented transform is exact, so the UKF equals the KF up to round-off —
+  003 chose the UKF for "nonlinear and non-Gaussian characteristics", which
+  system (3) as printed does not have.
+
+Noise covariances: 000 Sec. III gives Q̄ = 2.5e-3, R̄ = 1e-3 in normal driving and
+Q̄ = 3.3e-4, R̄ = 2.1e-1 while the high-slip module (:mod:`.corner_slip`) flags the
+corner, as scalars. :meth:`KFParams.paper` reads them as Q̄ = q I₃ per 5 ms step
+(T_s of 000 Sec. III-C); the defaults of :class:`KFParams` scale Q̄ per state and
+drop the force update under high slip (reasons in its docstring). Q̄ is scaled by
+h/T_s for a step h ≠ T_s.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+from numba import njit
+
+from vestim.estimators.velocity.corner_common import (
+    H_AX,
+    H_D,
+    H_R,
+    H_T,
+    H_W,
+    count_release,
+    pick,
+    store,
+    transport_rate,
+    vyt_no_sideslip,
+)
+from vestim.estimators.velocity.corner_discrete import kf_transition
+from vestim.estimators.velocity.corner_slip import (
+    HighSlipParams,
+    detector_step,
+    is_high_slip,
+    slip_ratio_estimate,
+)
+from vestim.filters.ukf import sigma_points
+from vestim.models.lpv import KalmanState
+
+_JIT: dict[str, Any] = {"cache": True, "error_model": "numpy"}
+
+Z, VR, ZD = int(KalmanState.Z), int(KalmanState.VR), int(KalmanState.ZDOT)
+NX = 3
+
+
+@dataclass(frozen=True)
+class KFParams:
+    """Noise settings of the LuGre Kalman/UKF corner estimators.
+
+    Q̄ = diag(q) is the process-noise covariance per step of ``step_ref`` seconds
+    (scaled by h/step_ref for a step h), state order [z̄_x (m²), v_rx ((m/s)²),
+    ż̄_x ((m/s)²)]; R̄ the variance of μ_x. ``q``/``r`` apply in normal driving,
+    ``q_high``/``r_high`` while the high-slip module flags the corner.
+
+    Defaults (ours, see docs/methods_velocity.md): 000 prints scalar Q̄ = 2.5e-3 /
+    3.3e-4 and R̄ = 1e-3 / 2.1e-1 (normal / high slip) without saying how Q̄ maps on
+    the three states. Read as Q̄ = q I₃ in SI units (:meth:`paper`), the deflection
+    z̄_x (|z̄| ≤ μ_s/σ0 ≈ 2 mm) gets a random walk of 50 mm per step, so the force is
+    absorbed by z̄_x and v_rx is left to the integrated kinematics (drift from the
+    accelerometer bias), and in long slip the friction-free model's huge force
+    prediction still pulls v̂_xt to Rω through R̄ = 0.21. The defaults scale Q̄ to
+    each state's physical range, keep 000's R̄ = 1e-3 and its high-slip ratio
+    Q̄_high/Q̄ = 3.3e-4/2.5e-3, and make the high-slip R̄ infinite (no force update:
+    in saturation μ_x carries no information on v_rx).
+
+    Attributes:
+        q, r: normal-driving Q̄ diagonal and R̄.
+        q_high, r_high: high-slip Q̄ diagonal and R̄ (r_high = inf: no force update).
+        p0: diagonal of the initial covariance P̄_{0|−1}.
+        step_ref: s, the step the Q̄ values refer to (000's T_s = 0.005 s).
+        high_slip: the detection module's parameters.
+    """
+
+    q: tuple[float, float, float] = (1.0e-9, 1.0e-7, 1.0e-4)
+    r: float = 1.0e-3
+    q_high: tuple[float, float, float] = (1.32e-10, 1.32e-8, 1.32e-5)
+    r_high: float = math.inf
+    p0: tuple[float, float, float] = (1.0e-6, 1.0, 1.0e-2)
+    step_ref: float = 0.005
+    high_slip: HighSlipParams = field(default_factory=HighSlipParams)
+
+    @classmethod
+    def paper(cls) -> KFParams:
+        """000 Sec. III's values read literally: Q̄ = q I₃ (2.5e-3 / 3.3e-4), R̄ = 1e-3 / 2.1e-1,
+        P̄_{0|−1} = 2.5e-3 I₃, and no μ release in the high-slip module."""
+        return cls(q=(2.5e-3,) * 3, r=1.0e-3, q_high=(3.3e-4,) * 3, r_high=2.1e-1,
+                   p0=(2.5e-3,) * 3, high_slip=HighSlipParams(mu_release=0.0))
+
+    def __post_init__(self) -> None:
+        for name in ("q", "q_high", "p0"):
+            v = tuple(float(e) for e in getattr(self, name))
+            if len(v) != NX or not all(math.isfinite(e) and e > 0.0 for e in v):
+                raise ValueError(f"KFParams.{name} = {getattr(self, name)!r} must be {NX} finite "
+                                 "numbers > 0 (diagonal of [z, v_r, z_dot])")
+            object.__setattr__(self, name, v)
+        for name in ("r", "r_high", "step_ref"):
+            v = getattr(self, name)
+            if not (isinstance(v, int | float) and v > 0.0) or math.isnan(v):
+                raise ValueError(f"KFParams.{name} = {v!r} must be a number > 0")
+        if not math.isfinite(self.r) or not math.isfinite(self.step_ref):
+            raise ValueError("KFParams.r and step_ref must be finite")
+
+
+@njit(**_JIT)
+def _kf_step(x: np.ndarray, P: np.ndarray, c: int, Ak: np.ndarray, Bk: np.ndarray, u: float,
+             q: np.ndarray, r: float, y: float, c0: float, c1: float, c2: float,
+             T: np.ndarray) -> None:
+    """One predict/update of the linear KF (000 eq. (21)–(22), filter form), in place on x[c], P[c].
+
+    Uses the structure of A_k (:func:`~.corner_discrete.kf_transition`): A_k[0, 2] = 0
+    and row 1 = [0, 1, 0] (v_rx is only driven by the input).
+    """
+    a00, a01, a20, a21, a22 = Ak[0, 0], Ak[0, 1], Ak[2, 0], Ak[2, 1], Ak[2, 2]
+    xp0 = a00 * x[c, 0] + a01 * x[c, 1] + Bk[0] * u
+    xp1 = x[c, 1] + Bk[1] * u
+    xp2 = a20 * x[c, 0] + a21 * x[c, 1] + a22 * x[c, 2] + Bk[2] * u
+    # T = A P, then P⁻ = T Aᵀ + Q
+    for j in range(NX):
+        T[0, j] = a00 * P[c, 0, j] + a01 * P[c, 1, j]
+        T[1, j] = P[c, 1, j]
+        T[2, j] = a20 * P[c, 0, j] + a21 * P[c, 1, j] + a22 * P[c, 2, j]
+    s00 = T[0, 0] * a00 + T[0, 1] * a01 + q[0]
+    s01 = T[0, 1]
+    s02 = T[0, 0] * a20 + T[0, 1] * a21 + T[0, 2] * a22
+    s11 = T[1, 1] + q[1]
+    s12 = T[1, 0] * a20 + T[1, 1] * a21 + T[1, 2] * a22
+    s22 = T[2, 0] * a20 + T[2, 1] * a21 + T[2, 2] * a22 + q[2]
+    if math.isnan(y):
+        x[c, 0] = xp0
+        x[c, 1] = xp1
+        x[c, 2] = xp2
+        P[c, 0, 0] = s00
+        P[c, 0, 1] = P[c, 1, 0] = s01
+        P[c, 0, 2] = P[c, 2, 0] = s02
+        P[c, 1, 1] = s11
+        P[c, 1, 2] = P[c, 2, 1] = s12
+        P[c, 2, 2] = s22
+        return
+    # gain K = P⁻Cᵀ / (C P⁻ Cᵀ + R), C = [σ0, σ2, σ1]
+    pc0 = s00 * c0 + s01 * c1 + s02 * c2
+    pc1 = s01 * c0 + s11 * c1 + s12 * c2
+    pc2 = s02 * c0 + s12 * c1 + s22 * c2
+    sy = c0 * pc0 + c1 * pc1 + c2 * pc2 + r
+    k0 = pc0 / sy
+    k1 = pc1 / sy
+    k2 = pc2 / sy
+    innov = y - (c0 * xp0 + c1 * xp1 + c2 * xp2)
+    x[c, 0] = xp0 + k0 * innov
+    x[c, 1] = xp1 + k1 * innov
+    x[c, 2] = xp2 + k2 * innov
+    # Joseph form P = (I − KC) P⁻ (I − KC)ᵀ + K R Kᵀ: symmetric positive definite by
+    # construction even when round-off makes P⁻ − K S Kᵀ lose definiteness (σ0 ≈ 600
+    # against σ2 ≈ 0.002 makes C badly scaled). With G = I − KC and P⁻ symmetric:
+    # G P⁻ = P⁻ − K (C P⁻) = P⁻ − K pcᵀ.
+    g00 = 1.0 - k0 * c0
+    g01 = -k0 * c1
+    g02 = -k0 * c2
+    g10 = -k1 * c0
+    g11 = 1.0 - k1 * c1
+    g12 = -k1 * c2
+    g20 = -k2 * c0
+    g21 = -k2 * c1
+    g22 = 1.0 - k2 * c2
+    h00 = s00 - k0 * pc0
+    h01 = s01 - k0 * pc1
+    h02 = s02 - k0 * pc2
+    h10 = s01 - k1 * pc0
+    h11 = s11 - k1 * pc1
+    h12 = s12 - k1 * pc2
+    h20 = s02 - k2 * pc0
+    h21 = s12 - k2 * pc1
+    h22 = s22 - k2 * pc2
+    P[c, 0, 0] = h00 * g00 + h01 * g01 + h02 * g02 + k0 * k0 * r
+    P[c, 0, 1] = P[c, 1, 0] = h00 * g10 + h01 * g11 + h02 * g12 + k0 * k1 * r
+    P[c, 0, 2] = P[c, 2, 0] = h00 * g20 + h01 * g21 + h02 * g22 + k0 * k2 * r
+    P[c, 1, 1] = h10 * g10 + h11 * g11 + h12 * g12 + k1 * k1 * r
+    P[c, 1, 2] = P[c, 2, 1] = h10 * g20 + h11 * g21 + h12 * g22 + k1 * k2 * r
+    P[c, 2, 2] = h20 * g20 + h21 * g21 + h22 * g22 + k2 * k2 * r
+
+
+@njit(**_JIT)
+def _ukf_step(x: np.ndarray, P: np.ndarray, c: int, Ak: np.ndarray, Bk: np.ndarray, u: float,
+              q: np.ndarray, r: float, y: float, c0: float, c1: float, c2: float,
+              wm: np.ndarray, wc: np.ndarray, tau: float, pts: np.ndarray, L: np.ndarray,
+              xm: np.ndarray, Pm: np.ndarray) -> None:
+    """One step of 003 Algorithm 1, in place on x[c], P[c] (xm, Pm: scratch copies).
+
+    Prediction through the sigma points of (x, P) (papers' scaling). The output
+    μ = C x is linear, so the sigma-point sums of the update (P_ŷŷ, P_x̂ŷ of
+    Algorithm 1, over points redrawn from (x̂_m, P_m + Q̄)) equal C P_m Cᵀ + R̄ and
+    P_m Cᵀ exactly and are evaluated in that closed form (as the force stage does
+    for its linear measurement); this saves a second factorisation per step.
+    """
+    npts = pts.shape[0]
+    for i in range(NX):
+        xm[i] = x[c, i]
+        for j in range(NX):
+            Pm[i, j] = P[c, i, j]
+    sigma_points(xm, Pm, tau, L, pts)
+    a00, a01, a20, a21, a22 = Ak[0, 0], Ak[0, 1], Ak[2, 0], Ak[2, 1], Ak[2, 2]
+    b0 = Bk[0] * u
+    b1 = Bk[1] * u
+    b2 = Bk[2] * u
+    # One pass over the points: F(χ_i) = A_k χ_i + B_k u (A_k[0, 2] = 0, row 1 = [0, 1, 0]),
+    # kept as deviations d_i = F(χ_i) − F(χ_0) from the propagated centre (no cancellation),
+    # with Σ W^m d, Σ W^c d, Σ W^c and Σ W^c d dᵀ; then the mean m = F(χ_0) + Σ W^m d and
+    # Σ W^c (F − m)(F − m)ᵀ = Σ W^c d dᵀ − e gᵀ − g eᵀ + (Σ W^c) e eᵀ, e = Σ W^m d, g = Σ W^c d.
+    q0, q1, q2 = pts[0, 0], pts[0, 1], pts[0, 2]
+    f0c = a00 * q0 + a01 * q1 + b0
+    f1c = q1 + b1
+    f2c = a20 * q0 + a21 * q1 + a22 * q2 + b2
+    e0 = e1 = e2 = 0.0
+    g0 = g1 = g2 = 0.0
+    wsum = wc[0]
+    s00 = s01 = s02 = s11 = s12 = s22 = 0.0
+    for i in range(1, npts):
+        d0 = a00 * (pts[i, 0] - q0) + a01 * (pts[i, 1] - q1)
+        d1 = pts[i, 1] - q1
+        d2 = a20 * (pts[i, 0] - q0) + a21 * (pts[i, 1] - q1) + a22 * (pts[i, 2] - q2)
+        w = wm[i]
+        e0 += w * d0
+        e1 += w * d1
+        e2 += w * d2
+        w = wc[i]
+        wsum += w
+        wd0 = w * d0
+        wd1 = w * d1
+        g0 += wd0
+        g1 += wd1
+        g2 += w * d2
+        s00 += wd0 * d0
+        s01 += wd0 * d1
+        s02 += wd0 * d2
+        s11 += wd1 * d1
+        s12 += wd1 * d2
+        s22 += w * d2 * d2
+    m0 = f0c + e0
+    m1 = f1c + e1
+    m2 = f2c + e2
+    s00 += -2.0 * e0 * g0 + wsum * e0 * e0
+    s01 += -e0 * g1 - g0 * e1 + wsum * e0 * e1
+    s02 += -e0 * g2 - g0 * e2 + wsum * e0 * e2
+    s11 += -2.0 * e1 * g1 + wsum * e1 * e1
+    s12 += -e1 * g2 - g1 * e2 + wsum * e1 * e2
+    s22 += -2.0 * e2 * g2 + wsum * e2 * e2
+    s00 += q[0]
+    s11 += q[1]
+    s22 += q[2]
+    if math.isnan(y):
+        x[c, 0] = m0
+        x[c, 1] = m1
+        x[c, 2] = m2
+        P[c, 0, 0] = s00
+        P[c, 0, 1] = P[c, 1, 0] = s01
+        P[c, 0, 2] = P[c, 2, 0] = s02
+        P[c, 1, 1] = s11
+        P[c, 1, 2] = P[c, 2, 1] = s12
+        P[c, 2, 2] = s22
+        return
+    pxy0 = s00 * c0 + s01 * c1 + s02 * c2
+    pxy1 = s01 * c0 + s11 * c1 + s12 * c2
+    pxy2 = s02 * c0 + s12 * c1 + s22 * c2
+    pyy = c0 * pxy0 + c1 * pxy1 + c2 * pxy2 + r
+    k0 = pxy0 / pyy
+    k1 = pxy1 / pyy
+    k2 = pxy2 / pyy
+    innov = y - (c0 * m0 + c1 * m1 + c2 * m2)
+    x[c, 0] = m0 + k0 * innov
+    x[c, 1] = m1 + k1 * innov
+    x[c, 2] = m2 + k2 * innov
+    # P = P_m − K P_ŷŷ Kᵀ (Algorithm 1)
+    P[c, 0, 0] = s00 - k0 * k0 * pyy
+    P[c, 0, 1] = P[c, 1, 0] = s01 - k0 * k1 * pyy
+    P[c, 0, 2] = P[c, 2, 0] = s02 - k0 * k2 * pyy
+    P[c, 1, 1] = s11 - k1 * k1 * pyy
+    P[c, 1, 2] = P[c, 2, 1] = s12 - k1 * k2 * pyy
+    P[c, 2, 2] = s22 - k2 * k2 * pyy
+
+
+@njit(**_JIT)
+def lugre_kf_kernel(
+    t: np.ndarray, omega: np.ndarray, mu_x: np.ndarray, a_xt: np.ndarray, a_yt: np.ndarray,
+    delta: np.ndarray, yaw_rate: np.ndarray, hint: np.ndarray, vyt_in: np.ndarray,
+    radius: float, kappa: float, sigma0: float, sigma1: float, sigma2: float,
+    x_corner: np.ndarray, q: np.ndarray, r: float, q_high: np.ndarray, r_high: float, p0: np.ndarray,
+    step_ref: float, lam_u: float, lam_l: float, beta_e: float, wdot_th: float,
+    min_speed: float, mu_release: float, release_window: int, use_ukf: bool, wm: np.ndarray,
+    wc: np.ndarray, tau: float,
+    x: np.ndarray, P: np.ndarray, hold: np.ndarray, acc_buf: np.ndarray, stats: np.ndarray,
+    w_buf: np.ndarray, t_buf: np.ndarray, ring: np.ndarray,
+    out_vxt: np.ndarray, out_sigma: np.ndarray, out_high: np.ndarray, out_vr: np.ndarray,
+    out_z: np.ndarray, out_zdot: np.ndarray,
+) -> None:
+    """Advance the four corner filters over a chunk of n samples, in place on the state arrays.
+
+    Inputs: t (n,) s; omega, mu_x, a_xt, a_yt, delta (n, 4); yaw_rate (n,); hint (n, 4)
+    bool; vyt_in (n, 4) m/s (NaN: use :func:`~.corner_common.vyt_no_sideslip`).
+    State: x (4, 3), P (4, 3, 3), hold (9, 4) (:mod:`.corner_common`) and the detector's rings (see
+    :func:`~.corner_slip.detector_step`). Outputs (n, 4): v̂_xt = Rω − v̂_rx, its
+    one-sigma √P_vr, the high-slip flag, v̂_rx, ẑ_x, ż̂_x.
+
+    Samples with NaN t or ω give NaN outputs and leave the state untouched; NaN μ_x
+    skips the update (prediction only); NaN accelerations, δ or r hold the last value.
+    """
+    n = t.shape[0]
+    kr = kappa * radius
+    Ak = np.empty((3, 3))
+    Bk = np.empty(3)
+    xp = np.empty(3)
+    Pp = np.empty((3, 3))
+    T = np.empty((3, 3))
+    pts = np.empty((2 * NX + 1, NX))
+    L = np.empty((NX, NX))
+    wdh = np.empty(4, dtype=np.bool_)
+    qk = np.empty(NX)
+    for k in range(n):
+        tk = t[k]
+        if math.isnan(tk):
+            for c in range(4):
+                out_vxt[k, c] = math.nan
+                out_sigma[k, c] = math.nan
+                out_high[k, c] = False
+                out_vr[k, c] = math.nan
+                out_z[k, c] = math.nan
+                out_zdot[k, c] = math.nan
+            continue
+        thr = detector_step(k, tk, omega, a_xt, a_yt, lam_u, lam_l, beta_e, wdot_th,
+                            acc_buf, stats, w_buf, t_buf, ring, wdh)
+        for c in range(4):
+            wk = omega[k, c]
+            if math.isnan(wk):
+                out_vxt[k, c] = math.nan
+                out_sigma[k, c] = math.nan
+                out_high[k, c] = False
+                out_vr[k, c] = math.nan
+                out_z[k, c] = math.nan
+                out_zdot[k, c] = math.nan
+                continue
+            yk = mu_x[k, c]
+            high = False
+            if math.isnan(hold[H_T, c]):
+                # First sample: free rolling (v_r = 0), deflection from the force.
+                x[c, Z] = 0.0 if math.isnan(yk) else yk / sigma0
+                x[c, VR] = 0.0
+                x[c, ZD] = 0.0
+                P[c, :, :] = 0.0
+                for i in range(NX):
+                    P[c, i, i] = p0[i]
+            else:
+                h = tk - hold[H_T, c]
+                w0 = hold[H_W, c]
+                rho0 = abs(w0)
+                rho1 = abs(wk)
+                a = kr * 0.5 * (rho0 + rho1)
+                b = kr * (rho1 - rho0) / h
+                kf_transition(a, b, h, Ak, Bk)
+                d_now = pick(delta[k, c], hold[H_D, c])
+                r_mid = 0.5 * (pick(yaw_rate[k], hold[H_R, c]) + hold[H_R, c])
+                ax_mid = 0.5 * (pick(a_xt[k, c], hold[H_AX, c]) + hold[H_AX, c])
+                vyt = vyt_in[k, c]
+                if math.isnan(vyt):
+                    vyt = vyt_no_sideslip(r_mid, x_corner[c], radius * w0 - x[c, VR], d_now)
+                vxt_dot = ax_mid + transport_rate(r_mid, d_now, hold[H_D, c], h) * vyt
+                u = radius * (wk - w0) / h - vxt_dot
+                # High-slip module on the prior mean (000 Sec. III): slip or |ω̇| criterion.
+                vr_prior = Ak[VR, Z] * x[c, Z] + Ak[VR, VR] * x[c, VR] + Bk[VR] * u
+                lam_k = slip_ratio_estimate(radius * wk, vr_prior, min_speed)
+                rel = count_release(hold, c, yk, mu_release, release_window)
+                high = is_high_slip(lam_k, thr, wdh[c], hint[k, c], rel)
+                scale = h / step_ref
+                for i in range(NX):
+                    qk[i] = (q_high[i] if high else q[i]) * scale
+                rk = r_high if high else r
+                y_use = math.nan if math.isinf(rk) else yk  # R̄ = ∞: prediction only
+                if use_ukf:
+                    _ukf_step(x, P, c, Ak, Bk, u, qk, rk, y_use, sigma0, sigma2, sigma1, wm, wc,
+                              tau, pts, L, xp, Pp)
+                else:
+                    _kf_step(x, P, c, Ak, Bk, u, qk, rk, y_use, sigma0, sigma2, sigma1, T)
+            out_vxt[k, c] = radius * wk - x[c, VR]
+            out_sigma[k, c] = math.sqrt(max(P[c, VR, VR], 0.0))
+            out_high[k, c] = high
+            out_vr[k, c] = x[c, VR]
+            out_z[k, c] = x[c, Z]
+            out_zdot[k, c] = x[c, ZD]
+            store(hold, c, tk, wk, delta[k, c], a_xt[k, c], a_yt[k, c], yk, math.nan,
+                  yaw_rate[k])
