@@ -81,6 +81,11 @@ def test_design_commands(tmp_path):
     check = runner.invoke(app, ["design", "check", "--gains", str(gains)])
     assert check.exit_code == 0, check.output
     assert "VERIFIED" in check.stdout
+    sim = tmp_path / "sim.parquet"
+    assert runner.invoke(app, ["simulate", "lc_wet", "--out", str(sim)]).exit_code == 0
+    est = runner.invoke(app, ["estimate", str(sim), "--velocity", "lpv", "--gains", str(gains),
+                              "--out", str(tmp_path / "est.csv")])
+    assert est.exit_code == 0, est.output
     bad = tmp_path / "bad.toml"
     bad.write_text("[longitudinal]\nomega = [0.0]\n")
     res = runner.invoke(app, ["design", "check", "--gains", str(bad)])

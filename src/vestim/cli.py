@@ -92,6 +92,8 @@ def estimate_cmd(
                                           "ukf | lpv.")] = "reference",
     force: Annotated[str, typer.Option(help="Longitudinal force: ukf | ukf_rw | pid | uio | naive.")] = "ukf",
     normal: Annotated[str, typer.Option(help="Load transfer: dynamic | static.")] = "dynamic",
+    gains: Annotated[Path | None, typer.Option(help="Gains file of `vestim design lpv` for "
+                                               "--velocity lpv.")] = None,
     config: Annotated[Path | None, typer.Option(help="TOML file with a [pipeline] table "
                                                 "(overrides the stage flags).")] = None,
 ) -> None:
@@ -99,7 +101,8 @@ def estimate_cmd(
     try:
         veh = load_vehicle(vehicle)
         cfg = (PipelineConfig.from_toml(config) if config is not None
-               else PipelineConfig(force=force, normal=normal, velocity=velocity))
+               else PipelineConfig(force=force, normal=normal, velocity=velocity,
+                                   gains=str(gains) if gains else None))
         log = read_log(log_path, require=["measured"], wheel_radius=veh.body.wheel_radius)
         t0 = time.perf_counter()
         est = Pipeline(veh, cfg).run(log)

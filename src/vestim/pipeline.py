@@ -34,6 +34,8 @@ from vestim.estimators.force.estimator import force_columns, inputs_from_log
 from vestim.estimators.force.longitudinal import METHODS as FORCE_METHODS
 from vestim.estimators.velocity.corner import CornerVelocityEstimator, CornerVelocityInput
 from vestim.estimators.velocity.kinematic import KinematicIntegrator
+from vestim.estimators.velocity.lpv_observer import GainSchedule as LPVGains
+from vestim.estimators.velocity.lpv_observer import LPVParams
 from vestim.estimators.velocity.reference import ReferenceFilter, ReferenceParams
 from vestim.io.vehicle import Vehicle
 from vestim.models import kinematics as kin
@@ -59,12 +61,15 @@ class PipelineConfig:
             weights η1 = η2 = 0.5 (001 eq. (34)): "kf" (000 eq. (16)–(23)), "ukf"
             (003 Alg. 1), "lpv" (001 eq. (22)–(24), (36)–(38)).
         reference: parameters of the reference filter.
+        gains: path of a gains file from ``vestim design lpv`` for the "lpv" observers
+            (default: 001's constant gains).
     """
 
     force: str = "ukf"
     normal: str = "dynamic"
     velocity: str = "reference"
     reference: ReferenceParams = field(default_factory=ReferenceParams)
+    gains: str | None = None
 
     def __post_init__(self) -> None:
         if self.force not in FORCE_METHODS:
@@ -78,7 +83,7 @@ class PipelineConfig:
 
     @classmethod
     def from_toml(cls, path: str | Path) -> PipelineConfig:
-        """Read the ``[pipeline]`` table of a TOML file (keys: force, normal, velocity)."""
+        """Read the ``[pipeline]`` table of a TOML file (keys: force, normal, velocity, gains)."""
         data = tomllib.loads(Path(path).read_text(encoding="utf-8"))
         table = data.get("pipeline")
         if not isinstance(table, dict):
@@ -89,6 +94,22 @@ class PipelineConfig:
             raise PipelineConfigError(f"{path}: [pipeline] has unknown key(s) {', '.join(unknown)};"
                                       f" allowed: {', '.join(sorted(allowed))}")
         return cls(**table)
+
+
+def _lpv_params_from_gains(path: str) -> LPVParams:
+    """LPV observer parameters from a gains file of ``vestim design lpv`` (innovation form)."""
+    from vestim.design.gains import load_gains  # offline toolkit: imported only when used
+
+    schedule = load_gains(path)
+
+    def one(g: Any) -> LPVGains | None:
+        return None if g is None else LPVGains(tuple(g.omega), tuple(g.l1), tuple(g.l2),
+                                               "innovation")
+
+    lon = one(schedule.longitudinal)
+    if lon is None:
+        raise PipelineConfigError(f"{path}: the gains file has no [longitudinal] table")
+    return LPVParams(longitudinal=lon, lateral=one(schedule.lateral))
 
 
 class Pipeline:
@@ -107,7 +128,9 @@ class Pipeline:
         self.kinematic = KinematicIntegrator(b.wheel_radius)
         method = self.config.velocity
         corner_method = CORNER_METHODS.get(method, "lugre_kf" if method == "fused" else None)
-        self.corner = (CornerVelocityEstimator(vehicle, corner_method)
+        params = (_lpv_params_from_gains(self.config.gains)
+                  if corner_method == "lpv" and self.config.gains else None)
+        self.corner = (CornerVelocityEstimator(vehicle, corner_method, params)
                        if corner_method is not None else None)
         # The fused filter: a second reference filter that also takes the corner estimates.
         self.fused = ReferenceFilter(b.wheel_radius, b.lr, self._xw, self._yw,
