@@ -200,10 +200,14 @@ class Pipeline:
                                              self._yw)
                 if method == "fused":
                     # Corner estimates are information where the wheel speeds have none:
-                    # trusted (σ = sigma_corner_slip) while a corner is in high slip, weak
-                    # (σ = sigma_corner) otherwise, when the wheel speeds already count.
+                    # they enter (σ = sigma_corner_slip) only while at least three corners
+                    # are in high slip, i.e. when no wheel speed can be trusted. Elsewhere
+                    # the corner KF is biased in moderate slip (docs/results.md) and the
+                    # wheel speeds already carry the information, so it stays out.
                     p = self.config.reference
-                    sd = np.where(out.high_slip, p.sigma_corner_slip, p.sigma_corner)
+                    all_slip = out.high_slip.sum(axis=1, keepdims=True) >= 3
+                    sd = np.where(all_slip & np.ones_like(out.high_slip), p.sigma_corner_slip, np.nan)
+                    vx_cg = np.where(all_slip, vx_cg, np.nan)
                     vel = self.fused.advance(u.t, u.omega, u.torque, mu_x_c, rear_slip,
                                              res["f_x"], res["f_y"], u.yaw_rate, u.delta,
                                              vx_cg, sd**2)

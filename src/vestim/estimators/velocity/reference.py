@@ -74,7 +74,7 @@ class ReferenceParams:
     bias_max: float = 0.5
     window: int = 20
     sigma_corner: float = 5.0
-    sigma_corner_slip: float = 3.0
+    sigma_corner_slip: float = 0.5
 
 
 @njit(**_JIT)
