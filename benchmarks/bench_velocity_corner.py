@@ -1,4 +1,4 @@
-"""Corner velocity observers (issue 4): speed, and the accuracy table of docs/results_velocity_corner.md.
+"""Corner velocity observers (issue 4): speed, and the accuracy table of docs/results.md.
 
 Run:  .venv/bin/python benchmarks/bench_velocity_corner.py           # speed
       .venv/bin/python benchmarks/bench_velocity_corner.py --table   # accuracy (~3 min)

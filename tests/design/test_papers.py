@@ -1,6 +1,6 @@
 """The Lyapunov matrices printed in 001 eq. (29), (41) and 004 eq. (21), checked by eigenvalues.
 
-Expected figures come from this package's own run (docs/results_design.md); they are
+Expected figures come from this package's own run (docs/results.md); they are
 asserted with 1 % tolerance because the papers print 4-5 significant digits.
 """
 

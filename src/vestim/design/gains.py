@@ -189,7 +189,7 @@ def _array(a: Iterable[Any] | FArray) -> str:
 
 def _dumps(schedule: GainSchedule) -> str:
     out = [
-        "# vestim LPV observer gain schedule (format version 1; docs/methods_design.md)",
+        "# vestim LPV observer gain schedule (format version 1; docs/methods.md)",
         f"format_version = {FORMAT_VERSION}",
         f"vehicle = {_quote(schedule.vehicle)}",
         'gain_form = "innovation"  # x_hat\' = A x_hat + B u + L (mu - C(omega) x_hat), 001 eq. (24)',

@@ -11,7 +11,7 @@ while that term is small, σ0|v_r|/(θg) ≪ κR|ω|, i.e. for slip ratios below
 1 %. Maneuvers with small slip are asserted with a margin of ~2× over the measured
 figure (seed-to-seed spread of the sensor noise). Where the model does not hold,
 the failure is recorded with ``xfail(strict=True)`` and its measured size, so that
-an improvement shows up as an XPASS to be documented (docs/results_velocity_corner.md).
+an improvement shows up as an XPASS to be documented (docs/results.md).
 """
 
 import dataclasses

@@ -88,7 +88,7 @@ class KFParams:
     ż̄_x ((m/s)²)]; R̄ the variance of μ_x. ``q``/``r`` apply in normal driving,
     ``q_high``/``r_high`` while the high-slip module flags the corner.
 
-    Defaults (ours, see docs/methods_velocity.md): 000 prints scalar Q̄ = 2.5e-3 /
+    Defaults (ours, see docs/methods.md): 000 prints scalar Q̄ = 2.5e-3 /
     3.3e-4 and R̄ = 1e-3 / 2.1e-1 (normal / high slip) without saying how Q̄ maps on
     the three states. Read as Q̄ = q I₃ in SI units (:meth:`paper`), the deflection
     z̄_x (|z̄| ≤ μ_s/σ0 ≈ 2 mm) gets a random walk of 50 mm per step, so the force is
