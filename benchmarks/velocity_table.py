@@ -5,8 +5,9 @@ Run:  .venv/bin/python benchmarks/velocity_table.py [--out FILE] [--tires magic,
 
 NRMS per 000 (RMS error / max |truth|); for v_y the denominator is
 max(max |truth|, 1 m/s). Columns: CG v_x for each velocity method of the
-pipeline (the UKF is omitted: it equals the KF to round-off on this linear model) and the floors — the naive mean wheel speed R·ω̄ and the kinematic
-integration (000 eq. (15)) — then the default's worst-corner v_x and CG v_y.
+pipeline (the UKF is omitted: it equals the KF to round-off on this linear
+model) and the naive mean wheel speed R·ω̄ as the floor, then the default's
+worst-corner v_x and CG v_y.
 Default parameters, seed 1, default sensor noise.
 """
 
