@@ -90,3 +90,18 @@ def test_design_commands(tmp_path):
     bad.write_text("[longitudinal]\nomega = [0.0]\n")
     res = runner.invoke(app, ["design", "check", "--gains", str(bad)])
     assert res.exit_code == 2 and "Traceback" not in res.output
+
+
+def test_estimate_stiffness_pf_writes_stiffness_channels(tmp_path):
+    """--method stiffness-pf (002 Algorithm 1) writes axle stiffness with sigmas and states."""
+    sim = tmp_path / "sim.parquet"
+    assert runner.invoke(app, ["simulate", "stiffness_study", "--out", str(sim)]).exit_code == 0
+    out = tmp_path / "k.parquet"
+    res = runner.invoke(app, ["estimate", str(sim), "--method", "stiffness-pf", "--particles",
+                              "100", "--seed", "3", "--out", str(out)])
+    assert res.exit_code == 0, res.output
+    est = read_log(out)
+    for col in ("stiffness_cx_f", "sigma_stiffness_cx_f", "stiffness_cy_f", "stiffness_cy_r",
+                "vx", "vy", "yaw_rate"):
+        assert col in est.columns
+    assert est["stiffness_cy_f"].gt(0).all()

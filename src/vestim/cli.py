@@ -96,8 +96,17 @@ def estimate_cmd(
                                                "--velocity lpv.")] = None,
     config: Annotated[Path | None, typer.Option(help="TOML file with a [pipeline] table "
                                                 "(overrides the stage flags).")] = None,
+    method: Annotated[str, typer.Option(help="pipeline (forces and velocities) | stiffness-pf "
+                                        "(002 Algorithm 1).")] = "pipeline",
+    particles: Annotated[int, typer.Option(help="Particles of stiffness-pf.")] = 500,
+    seed: Annotated[int, typer.Option(help="Random seed of stiffness-pf.")] = 0,
 ) -> None:
-    """Estimate tire forces and vehicle/corner velocities from a measured log."""
+    """Estimate tire forces and vehicle/corner velocities (or tire stiffness) from a measured log."""
+    if method == "stiffness-pf":
+        _estimate_stiffness(log_path, out, vehicle, particles, seed)
+        return
+    if method != "pipeline":
+        raise _fail(ValueError(f"method {method!r}: use pipeline or stiffness-pf"))
     try:
         veh = load_vehicle(vehicle)
         cfg = (PipelineConfig.from_toml(config) if config is not None
@@ -113,6 +122,23 @@ def estimate_cmd(
         raise _fail(exc) from None
     console.print(f"wrote {path} ({len(est)} samples, {len(est.columns) - 1} channels, "
                   f"{time.perf_counter() - t0:.2f} s)")
+
+
+def _estimate_stiffness(log_path: Path, out: Path, vehicle: str, particles: int,
+                        seed: int) -> None:
+    from vestim.estimators.stiffness import estimate_stiffness
+
+    try:
+        veh = load_vehicle(vehicle)
+        log = read_log(log_path)
+        t0 = time.perf_counter()
+        est = estimate_stiffness(log, veh, particles=particles, seed=seed)
+        path = write_log(est, out, metadata={"vehicle": veh.name, "method": "stiffness-pf",
+                                             "particles": str(particles), "seed": str(seed),
+                                             "source": str(log_path)})
+    except (VestimError, ValueError, OSError) as exc:
+        raise _fail(exc) from None
+    console.print(f"wrote {path} ({len(est)} samples, {time.perf_counter() - t0:.2f} s)")
 
 
 @app.command("score")

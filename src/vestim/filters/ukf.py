@@ -21,6 +21,8 @@ from typing import Any
 import numpy as np
 from numba import njit
 
+from vestim.filters.linalg import cholesky
+
 _JIT: dict[str, Any] = {"cache": True, "error_model": "numpy"}
 
 BETA = 2.0
@@ -45,50 +47,15 @@ def ukf_weights(n: int, beta: float = BETA) -> tuple[np.ndarray, np.ndarray, flo
 
 
 @njit(**_JIT)
-def cholesky_small(S: np.ndarray, L: np.ndarray) -> bool:
-    """Lower Cholesky factor of a small SPD matrix into ``L``; False if S is not positive definite.
-
-    Hand-written for N ≤ ~6: cheaper than a LAPACK call per sample inside a time loop.
-    """
-    n = S.shape[0]
-    L[:, :] = 0.0
-    for j in range(n):
-        d = S[j, j]
-        for k in range(j):
-            d -= L[j, k] * L[j, k]
-        if not d > 0.0:
-            return False
-        L[j, j] = math.sqrt(d)
-        for i in range(j + 1, n):
-            v = S[i, j]
-            for k in range(j):
-                v -= L[i, k] * L[j, k]
-            L[i, j] = v / L[j, j]
-    return True
-
-
-@njit(**_JIT)
 def sigma_points(x: np.ndarray, P: np.ndarray, tau: float, L: np.ndarray, out: np.ndarray) -> None:
     """Fill ``out`` (2N + 1, N) with x̂, x̂ + τ L_j, x̂ − τ L_j, L the Cholesky factor of P.
 
-    P must be symmetric (the filters symmetrise after each update). If it lost
-    definiteness to round-off, a growing jitter (from 1e-12·(1 + max diag)) is
-    added to a copy until the factorisation succeeds. ``L`` (N, N) is scratch
-    space; nothing is allocated on the normal path.
+    P must be symmetric (the filters symmetrise after each update); a pivot lost
+    to round-off is floored by :func:`vestim.filters.linalg.cholesky`. ``L`` (N, N)
+    is scratch space; nothing is allocated.
     """
     n = x.shape[0]
-    if not cholesky_small(P, L):
-        S = P.copy()
-        big = 0.0
-        for j in range(n):
-            big = max(big, abs(S[j, j]))
-        jitter = 1e-12 * (1.0 + big)
-        while True:
-            for j in range(n):
-                S[j, j] += jitter
-            if cholesky_small(S, L):
-                break
-            jitter *= 10.0
+    cholesky(P, L)
     for j in range(n):
         out[0, j] = x[j]
     for i in range(n):

@@ -37,7 +37,8 @@ from typing import Any
 import numpy as np
 from numba import njit
 
-from vestim.filters.ukf import cholesky_small, sigma_points
+from vestim.filters.linalg import cholesky
+from vestim.filters.ukf import sigma_points
 
 _JIT: dict[str, Any] = {"cache": True, "error_model": "numpy"}
 
@@ -255,7 +256,7 @@ def lateral_kernel(t: np.ndarray, fx: np.ndarray, delta: np.ndarray, weights: np
             y[2] = yaw_rate[k] - ym[2]
             y[3] = -ym[3]
             # K = Pxy Pyy⁻¹ by Cholesky of Pyy (SPD): solve Pyy Kᵀ = Pxyᵀ.
-            cholesky_small(Pyy, Ly)
+            cholesky(Pyy, Ly)
             for r in range(N_X):
                 for j in range(N_Y):  # forward substitution Ly z = Pxy[r]
                     v = Pxy[r, j]

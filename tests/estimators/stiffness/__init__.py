@@ -1,0 +1,1 @@
+"""Tests of the tire-stiffness estimators (002)."""
