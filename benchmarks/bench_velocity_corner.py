@@ -12,7 +12,7 @@ timed (best of 3, wall clock and process CPU time). Also reports the per-sample
 Accuracy: per-corner NRMS of v_xt (000 Sec. IV), worst corner, for every maneuver
 of :data:`TABLE_MANEUVERS` on both tire plants (seed 0, force stage in the loop,
 measured channels only), for each method, the free-rolling guess R·ω, and the KF /
-LPV with LuGre parameters fitted (:func:`~vestim.estimators.velocity.fit.fit_lugre`,
+LPV with LuGre parameters fitted (:func:`~vestim.design.calibration.fit_lugre`,
 calibration from ground truth) on :data:`FIT_SET` of the same plant.
 """
 
@@ -28,6 +28,7 @@ import numpy as np
 import pandas as pd
 
 from vestim.constants import CORNERS
+from vestim.design.calibration import fit_lugre
 from vestim.estimators.force import ForceEstimator
 from vestim.estimators.velocity.corner import (
     METHODS,
@@ -37,7 +38,6 @@ from vestim.estimators.velocity.corner import (
     LPVParams,
 )
 from vestim.estimators.velocity.corner_inputs import corner_inputs
-from vestim.estimators.velocity.fit import fit_lugre
 from vestim.io import load_vehicle
 from vestim.io.vehicle import Vehicle
 from vestim.models.kinematics import to_tire_frame

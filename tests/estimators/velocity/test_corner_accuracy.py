@@ -21,8 +21,8 @@ import pytest
 
 from tests.estimators.velocity.corner_data import SUV, nrms, reference_vxt, sim_case
 from vestim.constants import CORNERS
+from vestim.design.calibration import fit_lugre
 from vestim.estimators.velocity.corner import CornerVelocityEstimator, KFParams, LPVParams
-from vestim.estimators.velocity.fit import fit_lugre
 from vestim.io.vehicle import Vehicle
 from vestim.models.kinematics import to_tire_frame
 
