@@ -205,14 +205,14 @@ def run_method(method: str, case: Case, seed: int, particles: int = 500,
             "sd_err": sd_rel - case.true_sd[list(COMP_IDX)], "cpu": cpu}
 
 
-def effective_stiffness(seed: int = 0) -> dict[str, np.ndarray]:
+def effective_stiffness(tire: str = "magic", seed: int = 0) -> dict[str, np.ndarray]:
     """Model-mismatch floor: least-squares linear axle stiffness of the double-track truth.
 
-    From the noise-free ``ref_`` forces and slips of the MF plant: C_eff = Σ F s / Σ s²
+    From the noise-free ``ref_`` forces and slips of the plant: C_eff = Σ F s / Σ s²
     per axle and phase (s the axle-mean slip ratio or slip angle, F the axle force in
     the tire frames); relative to the mean ``ref_stiffness`` of the same samples.
     """
-    log = simulate(get_maneuver("stiffness_study", tire="magic"), VEHICLE, seed=seed,
+    log = simulate(get_maneuver("stiffness_study", tire=tire), VEHICLE, seed=seed,
                    sensors=SensorModel.ideal())
     t = log["t"].to_numpy()
     out = {}
@@ -413,7 +413,7 @@ def main() -> None:
                                         float(np.percentile(v, 25)), float(np.percentile(v, 75))))
                 print(f"  {kind} {m} N={n}: v_y RMSE mean {v.mean():.4f} median {np.median(v):.4f}",
                       flush=True)
-    mismatch = effective_stiffness()
+    mismatch = {tire: effective_stiffness(tire) for tire in ("magic", "lugre")}
     fig4(examples["dt-magic"], c0s["dt-magic"], FIG / "stiffness_fig4.png",
          "002 Fig. 4 equivalent: double-track MF plant, seed 0, 500 particles, λ = 0.99")
     fig4(examples["st"], c0s["st"], FIG / "stiffness_fig4_single_track.png",
@@ -422,6 +422,17 @@ def main() -> None:
     fig6({k: all_results[k] for k in ("dt-magic", "st")}, FIG / "stiffness_fig6.png")
     write_markdown(all_results, plan, curves, mismatch, tuning, walk, time.time() - t_start)
     print(f"done in {time.time() - t_start:.0f} s")
+
+
+def hand_written_summary() -> list[str]:
+    """The "## Summary" section of the existing results file (kept across regenerations)."""
+    path = ROOT / "docs" / "results_stiffness.md"
+    if not path.exists():
+        return []
+    text = path.read_text()
+    if "## Summary" not in text or "## Tables" not in text:
+        return []
+    return [*text[text.index("## Summary"):text.index("## Tables")].rstrip().split("\n"), ""]
 
 
 def write_markdown(all_results: dict, plan: dict, curves: dict, mismatch: dict,
@@ -447,15 +458,17 @@ def write_markdown(all_results: dict, plan: dict, curves: dict, mismatch: dict,
              "settle in brackets); *est. σ* = "
              "time-mean σ̂/C from eq. (27b) with the true spread in brackets (5 % for the "
              "single-track data, the load-transfer variation of `ref_stiffness` for the plant).", ""]
+    lines += [*hand_written_summary(), "## Tables", ""]
     for kind in plan:
         lines += table(names[kind], all_results[kind], plan[kind])
-    lines += ["### Model mismatch of the single-track model on the MF plant", "",
+    lines += ["### Model mismatch of the single-track model on the double-track plant", "",
               "Least-squares linear axle stiffness of the noise-free plant (`ref_` forces against "
               "`ref_` slips), relative to the mean `ref_stiffness` over the same samples: the "
               "value a perfect linear single-track estimator converges to.", "",
-              "| component | before the drop % | after the drop % |", "|---|---|---|"]
-    for c, v in mismatch.items():
-        lines.append(f"| {c} | {pct(v[0])} | {pct(v[1])} |")
+              "| tire | component | before the drop % | after the drop % |", "|---|---|---|---|"]
+    for tire, by_c in mismatch.items():
+        for c, v in by_c.items():
+            lines.append(f"| {tire} | {c} | {pct(v[0])} | {pct(v[1])} |")
     lines += ["", "### v_y RMSE against particle count (002 Fig. 5): mean / median over runs, m/s",
               "", "| data | method | " + " | ".join(f"N={p[0]}" for p in curves["dt-magic"]["pf"])
               + " |", "|---|---|" + "---|" * len(curves["dt-magic"]["pf"])]

@@ -69,15 +69,13 @@ class StiffnessResult:
     n_resampled: int
     method: str
     longitudinal: str
-    drivetrain: str
 
     def to_frame(self) -> pd.DataFrame:
         """Spec-format estimate log (see :func:`estimate_stiffness` for the columns)."""
         names = ("cx_f", "cx_r", "cy_f", "cy_r")
-        keep = (self.longitudinal,)
         cols: dict[str, np.ndarray] = {"t": self.t}
         for j, name in enumerate(names):
-            if name.startswith("cx") and name not in keep:
+            if name.startswith("cx") and name != self.longitudinal:
                 continue
             cols[f"stiffness_{name}"] = self.stiffness[:, j]
             cols[f"sigma_stiffness_{name}"] = self.stiffness_sd[:, j]
@@ -139,8 +137,7 @@ class _Setup:
         return StiffnessResult(t=inputs.t, stiffness=stiff, stiffness_sd=sd, state=state,
                                state_sd=state_sd, bias=bias_raw, active=inputs.active,
                                ess=ess, n_resampled=n_resampled, method=method,
-                               longitudinal=self.params.longitudinal_name,
-                               drivetrain=self.params.drivetrain)
+                               longitudinal=self.params.longitudinal_name)
 
 
 def _check_particles(particles: int) -> int:
