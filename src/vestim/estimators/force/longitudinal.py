@@ -112,16 +112,11 @@ def ukf_rw_kernel(t: np.ndarray, omega: np.ndarray, torque: np.ndarray, iw: floa
                 sigma[k, c] = np.sqrt(p0_force)
                 high[k, c] = False
                 prev_torque[c] = torque[k, c]
-            for j in range(m):
-                hist_t[j] = t[k]
-                for c in range(4):
-                    hist_w[j, c] = omega[k, c]
+            _fill_history(hist_t, hist_w, t[k], omega[k])
             continue
         dt = t[k] - hist_t[m - 1]
-        span = t[k] - hist_t[0]
         for c in range(4):
-            omega_dot = (omega[k, c] - hist_w[0, c]) / span if span > 0 else 0.0
-            is_high = abs(omega_dot) > omega_dot_high
+            is_high = abs(_omega_dot(hist_t, hist_w, t[k], omega[k, c], c)) > omega_dot_high
             q_f = q_force_high if is_high else q_force
             # Prediction through the wheel dynamics: sigma points of (x, P).
             sigma_points(x[c], P[c], tau, L, pts)
@@ -169,6 +164,22 @@ def ukf_rw_kernel(t: np.ndarray, omega: np.ndarray, torque: np.ndarray, iw: floa
             high[k, c] = is_high
             prev_torque[c] = torque[k, c]
         _push(hist_t, hist_w, t[k], omega[k])
+
+
+@njit(**_JIT)
+def _fill_history(hist_t: np.ndarray, hist_w: np.ndarray, tk: float, wk: np.ndarray) -> None:
+    """Start the (time, ω) history with the first sample repeated."""
+    for j in range(hist_t.shape[0]):
+        hist_t[j] = tk
+        for c in range(4):
+            hist_w[j, c] = wk[c]
+
+
+@njit(**_JIT)
+def _omega_dot(hist_t: np.ndarray, hist_w: np.ndarray, tk: float, wk: float, c: int) -> float:
+    """Wheel acceleration of corner c over the history window, rad/s² (004's switching signal)."""
+    span = tk - hist_t[0]
+    return (wk - hist_w[0, c]) / span if span > 0 else 0.0
 
 
 @njit(**_JIT)
@@ -225,16 +236,11 @@ def ukf_kernel(t: np.ndarray, omega: np.ndarray, torque: np.ndarray, iw: float, 
                 fx[k, c] = torque[k, c] / radius
                 sigma[k, c] = np.sqrt(r_torque + iw * iw * p0_acc) / radius
                 high[k, c] = False
-            for j in range(m):
-                hist_t[j] = t[k]
-                for c in range(4):
-                    hist_w[j, c] = omega[k, c]
+            _fill_history(hist_t, hist_w, t[k], omega[k])
             continue
         dt = t[k] - hist_t[m - 1]
-        span = t[k] - hist_t[0]
         for c in range(4):
-            omega_dot = (omega[k, c] - hist_w[0, c]) / span if span > 0 else 0.0
-            is_high = abs(omega_dot) > omega_dot_high
+            is_high = abs(_omega_dot(hist_t, hist_w, t[k], omega[k, c], c)) > omega_dot_high
             sigma_points(x[c], P[c], tau, L, pts)
             for i in range(npts):
                 pts[i, A_W] += dt * pts[i, A_A]
