@@ -67,7 +67,7 @@ class PipelineConfig:
 
     force: str = "ukf"
     normal: str = "dynamic"
-    velocity: str = "reference"
+    velocity: str = "fused"
     reference: ReferenceParams = field(default_factory=ReferenceParams)
     gains: str | None = None
 
@@ -123,7 +123,7 @@ class Pipeline:
         self._cy_norm = vehicle.tire.sigma0_y / vehicle.tire.kappa_y  # C_y / F_z, per rad
         self.force = ForceEstimator(vehicle, ForceConfig(longitudinal=self.config.force,
                                                          normal=self.config.normal))
-        self.reference = ReferenceFilter(b.wheel_radius, b.lr, self._xw, self._yw,
+        self.reference = ReferenceFilter(b.wheel_radius, b.lf, b.lr, self._xw, self._yw,
                                          self.config.reference)
         self.kinematic = KinematicIntegrator(b.wheel_radius)
         method = self.config.velocity
@@ -133,7 +133,7 @@ class Pipeline:
         self.corner = (CornerVelocityEstimator(vehicle, corner_method, params)
                        if corner_method is not None else None)
         # The fused filter: a second reference filter that also takes the corner estimates.
-        self.fused = ReferenceFilter(b.wheel_radius, b.lr, self._xw, self._yw,
+        self.fused = ReferenceFilter(b.wheel_radius, b.lf, b.lr, self._xw, self._yw,
                                      self.config.reference)
         self._prev = np.array([np.nan, 0.0])  # (t, yaw rate) of the previous sample, for ṙ
 
@@ -156,17 +156,29 @@ class Pipeline:
         self._prev = np.array([t[-1], r[-1]])
         return np.nan_to_num(acc, nan=0.0)
 
+    def _corner_cg(self, out: Any, u: Any) -> np.ndarray:
+        """Each corner observer's estimate mapped to the CG (n, 4), m/s (001 eq. (33))."""
+        vx_b, _ = kin.to_body_frame(out.vxt, np.where(np.isnan(out.vyt), 0.0, out.vyt), u.delta)
+        vx_cg, _ = kin.corners_to_cg(vx_b, np.zeros_like(vx_b), u.yaw_rate, self._xw, self._yw)
+        return np.asarray(vx_cg)
+
     def _corners(self, u: Any, res: dict[str, np.ndarray], mu_x: np.ndarray,
-                 vy: np.ndarray) -> Any:
-        """Run the corner observer (inputs as in corner_inputs: 001 text after eq. (21))."""
+                 vy: np.ndarray | None) -> Any:
+        """Run the corner observer (inputs as in corner_inputs: 001 text after eq. (21)).
+
+        ``vy`` (n,): the CG lateral speed for the tire-frame transport term; None uses the
+        observer's no-sideslip approximation."""
         assert self.corner is not None
         yaw_acc = self._yaw_acceleration(u.t, u.yaw_rate)
         ax_i, ay_i = kin.corner_accelerations(res["f_x"], res["f_y"], u.yaw_rate, yaw_acc,
                                               self._xw, self._yw)
         a_xt, a_yt = kin.to_tire_frame(ax_i, ay_i, u.delta)
-        vx_guess = self.vehicle.body.wheel_radius * u.omega.mean(axis=1)
-        vx_i, vy_i = kin.cg_to_corners(vx_guess, vy, u.yaw_rate, self._xw, self._yw)
-        _, vyt = kin.to_tire_frame(vx_i, vy_i, u.delta)
+        if vy is None:
+            vyt = np.full_like(u.omega, np.nan)
+        else:
+            vx_guess = self.vehicle.body.wheel_radius * u.omega.mean(axis=1)
+            vx_i, vy_i = kin.cg_to_corners(vx_guess, vy, u.yaw_rate, self._xw, self._yw)
+            _, vyt = kin.to_tire_frame(vx_i, vy_i, u.delta)
         fz = res["fz"]
         with np.errstate(divide="ignore", invalid="ignore"):
             mu_y = np.where(fz > 1.0, res["fy"] / fz, 0.0)
@@ -174,48 +186,59 @@ class Pipeline:
                                   yaw_rate=u.yaw_rate, mu_y=mu_y, a_yt=a_yt, vyt=vyt)
         return self.corner.advance(inp)
 
+    def _axle_slip(self, fy: np.ndarray, fz: np.ndarray) -> np.ndarray:
+        """Axle slip angles α = −F_y/C_y (n, 2) [front, rear], rad, with the nominal small-slip
+        stiffness C_y = ΣF_z σ0y/κy of the [tire] table (LuGre, 000 eq. (16)); NaN where the
+        axle carries under 1 N (lifted)."""
+        out = np.empty((fy.shape[0], 2))
+        for a, (i, j) in enumerate(((0, 1), (2, 3))):
+            c = self._cy_norm * (fz[:, i] + fz[:, j])
+            with np.errstate(divide="ignore", invalid="ignore"):
+                out[:, a] = np.where(c > 1.0, -(fy[:, i] + fy[:, j]) / c, np.nan)
+        return out
+
     def _advance(self, u: Any) -> dict[str, np.ndarray]:
         res = self.force.advance(u)
         fz = res["fz"]
         with np.errstate(divide="ignore", invalid="ignore"):
             mu_x = np.where(fz > 1.0, res["fx"] / fz, 0.0)
-            c_yr = self._cy_norm * (fz[:, 2] + fz[:, 3])
-            rear_slip = np.where(c_yr > 1.0, -(res["fy"][:, 2] + res["fy"][:, 3]) / c_yr, 0.0)
+            axle_slip = self._axle_slip(res["fy"], fz)
         method = self.config.velocity
         n = u.t.shape[0]
+        mu_x_c = np.ascontiguousarray(mu_x)
         if method == "kinematic":
             v = self.kinematic.advance(u.t, u.omega, res["f_x"], res["f_y"], u.yaw_rate)
             sig = np.full_like(v, np.nan)
             bias = np.full(n, np.nan)
-        else:
-            mu_x_c = np.ascontiguousarray(mu_x)
-            vel = self.reference.advance(u.t, u.omega, u.torque, mu_x_c, rear_slip, res["f_x"],
+        elif method == "fused":
+            # Corner estimates are information where the wheel speeds have none: they
+            # enter (σ = sigma_corner_slip, inflated by the filter for their correlation
+            # time) only while at least three corners are in high slip, i.e. when no wheel
+            # speed can be trusted. Elsewhere the corner KF is biased in moderate slip
+            # (docs/results.md) and the wheel speeds already carry the information. The
+            # corner KF's transport term takes v_y from the plain reference filter (the
+            # no-sideslip approximation fails when the car slides: 4–5 % v_x in RWD spins).
+            ref = self.reference.advance(u.t, u.omega, u.torque, mu_x_c, axle_slip, res["f_x"],
                                          res["f_y"], u.yaw_rate, u.delta)
-            v, sig, bias = vel["v"], vel["sigma"], vel["bias"]
+            out = self._corners(u, res, mu_x_c, ref["v"][:, 1])
+            vx_cg = self._corner_cg(out, u)
+            p = self.config.reference
+            all_slip = out.high_slip.sum(axis=1, keepdims=True) >= 3
+            vx_cg = np.where(all_slip, vx_cg, np.nan)
+            var = np.where(all_slip, p.sigma_corner_slip**2, np.nan) * np.ones_like(vx_cg)
+            vel = self.fused.advance(u.t, u.omega, u.torque, mu_x_c, axle_slip, res["f_x"],
+                                     res["f_y"], u.yaw_rate, u.delta, vx_cg, var)
+            v, sig, bias = vel["v"], vel["sigma"], vel["bias"][:, 0]
+        else:
+            vel = self.reference.advance(u.t, u.omega, u.torque, mu_x_c, axle_slip, res["f_x"],
+                                         res["f_y"], u.yaw_rate, u.delta)
+            v, sig, bias = vel["v"], vel["sigma"], vel["bias"][:, 0]
             if self.corner is not None:
                 out = self._corners(u, res, mu_x_c, v[:, 1])
-                vx_b, _ = kin.to_body_frame(out.vxt, np.where(np.isnan(out.vyt), 0.0, out.vyt),
-                                            u.delta)
-                vx_cg, _ = kin.corners_to_cg(vx_b, np.zeros_like(vx_b), u.yaw_rate, self._xw,
-                                             self._yw)
-                if method == "fused":
-                    # Corner estimates are information where the wheel speeds have none:
-                    # they enter (σ = sigma_corner_slip) only while at least three corners
-                    # are in high slip, i.e. when no wheel speed can be trusted. Elsewhere
-                    # the corner KF is biased in moderate slip (docs/results.md) and the
-                    # wheel speeds already carry the information, so it stays out.
-                    p = self.config.reference
-                    all_slip = out.high_slip.sum(axis=1, keepdims=True) >= 3
-                    sd = np.where(all_slip & np.ones_like(out.high_slip), p.sigma_corner_slip, np.nan)
-                    vx_cg = np.where(all_slip, vx_cg, np.nan)
-                    vel = self.fused.advance(u.t, u.omega, u.torque, mu_x_c, rear_slip,
-                                             res["f_x"], res["f_y"], u.yaw_rate, u.delta,
-                                             vx_cg, sd**2)
-                    v, sig, bias = vel["v"], vel["sigma"], vel["bias"]
-                else:
-                    # Fixed axle weights η1 = η2 = 0.5 (001 eq. (34)); v_y from the reference filter.
-                    v = np.column_stack((vx_cg.mean(axis=1), v[:, 1]))
-                    sig = np.full_like(v, np.nan)
+                vx_cg = self._corner_cg(out, u)
+                # Fixed axle weights η1 = η2 = 0.5 (001 eq. (34)); v_y from the reference filter.
+                v = np.column_stack((vx_cg.mean(axis=1), v[:, 1]))
+                sig = np.full_like(v, np.nan)
         vx_i, vy_i = kin.cg_to_corners(v[:, 0], v[:, 1], u.yaw_rate, self._xw, self._yw)
         vxt, vyt = kin.to_tire_frame(vx_i, vy_i, u.delta)
         res.update({"v": v, "sigma_v": sig, "bias": bias, "vx_i": vx_i, "vy_i": vy_i,

@@ -1,12 +1,11 @@
 """Reference-speed Kalman filter: what an ABS/ESC team ships without a tire model.
 
-State x = [v_x, v_y, b_x]: CG velocity in the body frame (m/s) and the bias of
-the longitudinal kinematic acceleration (m/s²; accelerometer bias plus the road
-grade's g·sin γ, which the IMU cannot tell apart). Process (000 eq. (15)):
-    v̇_x = f_x − b_x + r v_y,    v̇_y = f_y − r v_x,    ḃ_x = w_b,
+State x = [v_x, v_y, b_x, b_y]: CG velocity in the body frame (m/s) and the biases of
+the longitudinal and lateral kinematic accelerations (m/s²; accelerometer bias plus
+the road grade's g·sin γ or bank's g·sin β, which the IMU cannot tell apart, plus the
+yaw-gyro bias times v_x). Process (000 eq. (15) with the lateral equation):
+    v̇_x = f_x − b_x + r v_y,    v̇_y = f_y − b_y − r v_x,    ḃ = w_b,
 with f the IMU specific force rotated to the road plane by the body angles.
-(On a bank the lateral equation sees g·sin β as acceleration; v_y is kept
-bounded by the pseudo-measurement below.)
 
 Measurements, sequential scalar updates per sample:
 * each wheel's speed mapped to the CG, v_i = R ω_i cos δ_i − v_yt,i sin δ_i + r y_i
@@ -19,10 +18,13 @@ Measurements, sequential scalar updates per sample:
   and innovation gating (rejected beyond ``gate`` standard deviations);
 * optional extra CG-speed measurements (n, m) with their variances — the
   pipeline's fusion feeds the corner-based estimates here;
-* the rear-axle slip angle from the estimated rear lateral force and the
-  small-slip cornering stiffness of the [tire] table (C_yr = Σ F_z,r σ0y/κy):
-  v_y ≈ r l_r − v_x F_yr / C_yr, a weak pseudo-measurement whose variance grows
-  with |a_y| (the linear-tire assumption fails near the limit).
+* each axle's slip angle from its estimated lateral force and the nominal small-slip
+  cornering stiffness (α = −F_y/C_y): v_y = v_x(α_f + δ) − l_f r and v_y = v_x α_r + l_r r
+  (single-track kinematics), pseudo-measurements whose σ grows with the slip angle
+  (stiffness uncertainty) and the sideslip acceleration (sliding), gated at ``gate_vy``.
+  The friction is unknown, so a saturated axle's slip angle is unknown too: its
+  pseudo-measurement disagrees with the integral and is rejected; v_y then comes from
+  the integral, whose drift b_y (learnt while the tires were linear) holds down.
 
 A wheel whose measurement is rejected or inflated leaves the filter to the
 acceleration integral, whose drift the bias state limits.
@@ -38,7 +40,7 @@ from numba import njit
 
 _JIT: dict[str, Any] = {"cache": True, "error_model": "numpy"}
 
-VX, VY, BX = 0, 1, 2
+VX, VY, BX, BY = 0, 1, 2, 3
 
 
 @dataclass(frozen=True)
@@ -53,28 +55,48 @@ class ReferenceParams:
         k_acc: slip-evidence gain on |R ω̇ − a_x|, s (m/s per m/s²).
         slip_sign: innovation (m/s) at which a slip-signed innovation doubles σ.
         gate: innovation gate in standard deviations.
-        r_vy: variance of the v_y ≈ r l_r pseudo-measurement at a_y = 0, (m/s)².
-        k_vy: growth of its σ with |a_y|, s.
+        r_vy: variance of the axles' v_y pseudo-measurements at zero slip angle, (m/s)².
+        k_vy: growth of their σ with the sideslip acceleration |f_y − b_y − r v_x|, s.
         bias_max: bound on |b_x|, m/s² (sensor bias plus a grade of about 5 %).
+        q_bias_y: random-walk intensity of b_y, (m/s²)²/s.
+        bias_y_max: bound on |b_y|, m/s² (sensor biases, r-gyro bias × v_x, bank of ~5 %).
+        k_rel: relative error of the nominal cornering stiffness (σ of the pseudo-measurement
+            grows by k_rel·|v_x α|).
+        gate_vy: innovation gate of the v_y pseudo-measurements, standard deviations.
+        tau_vy: correlation time of their error, s (see :func:`_lateral_update`).
+        side_vy: innovation (m/s) on the allowed side of the linear-tire bound at which its
+            slip-dependent σ doubles.
+        tau_wheel: correlation time of a wheel's slip error, s: the slip-evidence part of
+            its σ enters with the variance inflated by τ/T_s (0: white).
+        acc_dead: dead zone of the |R ω̇ − a_x| evidence, m/s² (the wheel-speed noise makes
+            ω̇ over the window noisy: σ ≈ 2 m/s² for the simulator's sensors at 200 Hz).
         sigma_corner, sigma_corner_slip: one-sigma (m/s) given by the fused pipeline to a
             corner observer's CG speed outside and inside its high-slip mode.
         window: samples of the ω̇ difference.
     """
 
     q_vx: float = 0.02
-    q_vy: float = 0.05
+    q_vy: float = 1.0e-4
     q_bias: float = 2.0e-4
     r_wheel: float = 0.05
     k_mu: float = 1.0
     k_acc: float = 0.3
     slip_sign: float = 0.3
     gate: float = 5.0
-    r_vy: float = 0.01
-    k_vy: float = 0.3
+    r_vy: float = 0.0025
+    k_vy: float = 0.1
     bias_max: float = 0.5
+    q_bias_y: float = 1.0e-5
+    bias_y_max: float = 0.5
+    k_rel: float = 1.0
+    gate_vy: float = 3.0
+    tau_vy: float = 1.0
+    side_vy: float = 0.05
+    tau_wheel: float = 1.0
+    acc_dead: float = 3.0
     window: int = 20
     sigma_corner: float = 5.0
-    sigma_corner_slip: float = 0.5
+    sigma_corner_slip: float = 1.0
 
 
 @njit(**_JIT)
@@ -111,96 +133,131 @@ def _scalar_update(x: np.ndarray, P: np.ndarray, h: np.ndarray, z: float, r: flo
 
 
 @njit(**_JIT)
+def _lateral_update(x: np.ndarray, P: np.ndarray, h: np.ndarray, z: float, alpha: float,
+                    r_white: float, sig_col: float, inflate: float, s_side: float, gate: float,
+                    ph: np.ndarray) -> float:
+    """Update of v_y by an axle's linear-tire pseudo-measurement z (m/s).
+
+    Its error has a white part (variance ``r_white``: the lateral-force noise) and a part
+    that grows with the slip angle and the sliding (σ ``sig_col``) and persists for about
+    a second, so it enters with the variance σ²·``inflate`` (= τ_c/T_s, the samples per
+    correlation time: one sample's information per correlation time). A tire's force grows
+    less than linearly with its slip angle, so the linear α = −F_y/C under-states |α|:
+    z is a bound on v_y (an upper bound when α < 0), and an estimate on the bound's
+    allowed side is pulled only weakly (σ_col grows with (innovation/s_side)²). The gate
+    compares the innovation with the un-inflated σ. Returns the innovation (NaN if rejected).
+    """
+    innov = z - x[VY]
+    if innov * innov > gate * gate * (P[VY, VY] + r_white + sig_col * sig_col):
+        return np.nan
+    if (alpha < 0.0 and innov > 0.0) or (alpha > 0.0 and innov < 0.0):
+        sig_col *= 1.0 + (innov / s_side) ** 2
+    h[:] = 0.0
+    h[VY] = 1.0
+    return _scalar_update(x, P, h, z, r_white + sig_col * sig_col * inflate, np.inf, ph)
+
+
+@njit(**_JIT)
 def reference_kernel(t: np.ndarray, omega: np.ndarray, torque: np.ndarray, mu_x: np.ndarray,
-                     rear_slip: np.ndarray,
+                     axle_slip: np.ndarray,
                      f_x: np.ndarray, f_y: np.ndarray, yaw_rate: np.ndarray, delta: np.ndarray,
-                     extra_v: np.ndarray, extra_var: np.ndarray, radius: float, lr: float,
-                     xw: np.ndarray, yw: np.ndarray, prm: np.ndarray, x: np.ndarray, P: np.ndarray,
-                     hist: np.ndarray, state: np.ndarray, out_v: np.ndarray,
+                     extra_v: np.ndarray, extra_var: np.ndarray, radius: float, lf: float,
+                     lr: float, xw: np.ndarray, yw: np.ndarray, prm: np.ndarray, x: np.ndarray,
+                     P: np.ndarray, hist: np.ndarray, state: np.ndarray, out_v: np.ndarray,
                      out_sig: np.ndarray, out_bias: np.ndarray,
                      out_trust: np.ndarray) -> None:
-    """Advance the reference filter over a chunk, in place on x (3,), P (3, 3), hist, state.
+    """Advance the reference filter over a chunk, in place on x (4,), P (4, 4), hist, state.
 
-    ``prm`` = [q_vx, q_vy, q_bias, r_wheel, k_mu, k_acc, slip_sign, gate, r_vy, k_vy, bias_max].
+    ``prm`` = [q_vx, q_vy, q_bias, r_wheel, k_mu, k_acc, slip_sign, gate, r_vy, k_vy,
+    bias_max, q_bias_y, bias_y_max, k_rel, gate_vy, tau_vy, s_side, tau_wheel, acc_dead].
+    ``axle_slip`` (n, 2): front and rear axle slip angles from the lateral forces and the
+    nominal cornering stiffness, rad (spec sign: atan(v_yt/v_xt)); NaN where unknown.
     ``hist`` (m, 5): last m samples of (t, ω_fl…ω_rr) for ω̇; ``state`` = [t_prev, started,
-    f_x, f_y, r of the previous sample, samples with every wheel rejected]. ``extra_v``/
-    ``extra_var`` (n, m2): extra CG-speed
-    measurements and variances, NaN where absent. Outputs: out_v (n, 2) [v_x, v_y],
-    out_sig (n, 2), out_bias (n,), out_trust (n, 4) the standard deviation used per
-    wheel (inf where rejected).
+    f_x, f_y, r of the previous sample, samples with every wheel rejected, index of the
+    oldest row of ``hist`` (a ring buffer)]. ``extra_v``/
+    ``extra_var`` (n, m2): extra CG-speed measurements and variances, NaN where absent.
+    Outputs: out_v (n, 2) [v_x, v_y], out_sig (n, 2), out_bias (n, 2) [b_x, b_y], out_trust
+    (n, 4) the standard deviation used per wheel (inf where rejected).
     """
     q_vx, q_vy, q_b, r_w, k_mu, k_acc, s_sign, gate, r_vy, k_vy, bias_max = (
         prm[0], prm[1], prm[2], prm[3], prm[4], prm[5], prm[6], prm[7], prm[8], prm[9], prm[10])
+    q_by, by_max, k_rel, gate_vy, tau_vy, s_side, tau_w, acc_dead = prm[11:19]
     m = hist.shape[0]
-    h = np.zeros(3)
-    ph = np.empty(3)
-    F = np.empty((3, 3))
-    FP = np.empty((3, 3))
+    nx = x.shape[0]
+    h = np.zeros(nx)
+    ph = np.empty(nx)
     wheel_v = np.empty(4)
     for k in range(t.shape[0]):
+        dt = t[k] - state[0]
         if state[1] == 0.0:
             v0 = 0.0
             for i in range(4):
                 v0 += 0.25 * radius * omega[k, i]
+            x[:] = 0.0
             x[VX] = v0
-            x[VY] = 0.0
-            x[BX] = 0.0
             P[:, :] = 0.0
             P[VX, VX] = 1.0
             P[VY, VY] = 0.25
             P[BX, BX] = 0.25
+            P[BY, BY] = 0.05**2
             state[1] = 1.0
             for j in range(m):
                 hist[j, 0] = t[k]
                 for i in range(4):
                     hist[j, 1 + i] = omega[k, i]
+            state[6] = 0.0
         else:
-            dt = t[k] - state[0]
             fxp, fyp, rp = state[2], state[3], state[4]
             vx, vy = x[VX], x[VY]
-            # Prediction: v̇x = f_x − b + r v_y, v̇y = f_y − r v_x (inputs of the previous sample).
+            # Prediction (000 eq. (15) with the lateral equation and bias states):
+            # v̇x = f_x − b_x + r v_y,  v̇y = f_y − b_y − r v_x  (inputs of the previous sample).
             x[VX] = vx + dt * (fxp - x[BX] + rp * vy)
-            x[VY] = vy + dt * (fyp - rp * vx)
-            for i in range(3):
-                for j in range(3):
-                    F[i, j] = 1.0 if i == j else 0.0
-            F[VX, VY] = dt * rp
-            F[VX, BX] = -dt
-            F[VY, VX] = -dt * rp
-            for i in range(3):  # FP
-                for j in range(3):
-                    acc = 0.0
-                    for q in range(3):
-                        acc += F[i, q] * P[q, j]
-                    FP[i, j] = acc
-            for i in range(3):  # P = FP Fᵀ
-                for j in range(3):
-                    acc = 0.0
-                    for q in range(3):
-                        acc += FP[i, q] * F[j, q]
-                    P[i, j] = acc
+            x[VY] = vy + dt * (fyp - x[BY] - rp * vx)
+            # The r-coupling stays out of the covariance: with a gyro bias of 0.002 rad/s
+            # and r → 0 on a straight road it would make the lateral pseudo-measurements
+            # a spurious v_x measurement (v_x ≈ (f_y − b_y)/r); [v_x, b_x] and [v_y, b_y]
+            # are therefore two decoupled blocks (P stays block diagonal) whose means are
+            # coupled through r. Each block: F = [[1, −dt], [0, 1]], P ← F P Fᵀ.
+            for iv, ib in ((VX, BX), (VY, BY)):
+                pvv = P[iv, iv] - 2.0 * dt * P[iv, ib] + dt * dt * P[ib, ib]
+                pvb = P[iv, ib] - dt * P[ib, ib]
+                P[iv, iv] = pvv
+                P[iv, ib] = pvb
+                P[ib, iv] = pvb
             P[VX, VX] += q_vx * dt
             P[VY, VY] += q_vy * dt
             P[BX, BX] += q_b * dt
-        span = t[k] - hist[0, 0]
+            P[BY, BY] += q_by * dt
+        oldest = int(state[6])  # ring buffer: the oldest row is overwritten next
+        span = t[k] - hist[oldest, 0]
         r_now = yaw_rate[k]
         # Wheel speeds mapped to the CG, trusted by their evidence of slip.
         accepted = 0
+        sq_rw = np.sqrt(r_w)
+        inflate_w = max(tau_w / dt, 1.0) if dt > 0 else 1.0
         for i in range(4):
             c, s = np.cos(delta[k, i]), np.sin(delta[k, i])
             vxw = x[VX] - r_now * yw[i]
             vyw = x[VY] + r_now * xw[i]
             vyt = -vxw * s + vyw * c
             v_meas = radius * omega[k, i] * c - vyt * s + r_now * yw[i]
-            omega_dot = (omega[k, i] - hist[0, 1 + i]) / span if span > 0 else 0.0
-            acc_err = abs(radius * omega_dot - f_x[k] + x[BX])
-            sig = np.sqrt(r_w) + k_mu * abs(mu_x[k, i]) * abs(x[VX]) + k_acc * acc_err
+            omega_dot = (omega[k, i] - hist[oldest, 1 + i]) / span if span > 0 else 0.0
+            acc_err = max(abs(radius * omega_dot - f_x[k] + x[BX]) - acc_dead, 0.0)
+            sig = sq_rw + k_mu * abs(mu_x[k, i]) * abs(x[VX]) + k_acc * acc_err
             innov_pred = v_meas - x[VX]
             if (torque[k, i] > 0 and innov_pred > 0) or (torque[k, i] < 0 and innov_pred < 0):
                 sig *= 1.0 + (innov_pred / s_sign) ** 2
-            h[:] = 0.0
-            h[VX] = 1.0
-            res = _scalar_update(x, P, h, v_meas, sig * sig, gate, ph)
+            # The slip part of σ is a persistent error (a slipping wheel stays slipping), so
+            # it enters with the correlation-time inflation, like the lateral model error;
+            # the gate uses the plain σ.
+            slip_part = sig - sq_rw
+            if innov_pred * innov_pred > gate * gate * (P[VX, VX] + sig * sig):
+                res = np.nan
+            else:
+                h[:] = 0.0
+                h[VX] = 1.0
+                res = _scalar_update(x, P, h, v_meas, r_w + slip_part * slip_part * inflate_w,
+                                     np.inf, ph)
             out_trust[k, i] = np.inf if np.isnan(res) else sig
             wheel_v[i] = v_meas
             if not np.isnan(res):
@@ -211,32 +268,43 @@ def reference_kernel(t: np.ndarray, omega: np.ndarray, torque: np.ndarray, mu_x:
         state[5] = state[5] + 1.0 if accepted == 0 else 0.0
         if state[5] >= m:
             x[VX] = np.median(wheel_v)
-            for j in range(3):
+            for j in range(nx):
                 P[VX, j] = 0.0
                 P[j, VX] = 0.0
             P[VX, VX] = r_w
             state[5] = 0.0
-        # The bias is physically bounded (sensor bias plus a grade of at most ~5 %): a larger
-        # value means slip or a spinning car is being explained away as bias.
-        x[BX] = min(max(x[BX], -bias_max), bias_max)
         # Extra CG-speed measurements (fusion with the corner-based estimators).
         for j in range(extra_v.shape[1]):
             if not np.isnan(extra_v[k, j]):
                 h[:] = 0.0
                 h[VX] = 1.0
-                _scalar_update(x, P, h, extra_v[k, j], extra_var[k, j], gate, ph)
-        # v_y ≈ r l_r + v_x α_r with the rear slip angle α_r = −F_yr/C_yr (weak near the limit).
-        sig_vy = np.sqrt(r_vy) + k_vy * abs(f_y[k])
-        h[:] = 0.0
-        h[VY] = 1.0
-        _scalar_update(x, P, h, r_now * lr + x[VX] * rear_slip[k], sig_vy * sig_vy, 1e9, ph)
+                # A corner observer's error persists like a wheel's slip error: same inflation.
+                _scalar_update(x, P, h, extra_v[k, j], extra_var[k, j] * inflate_w, gate, ph)
+        # v_y from each axle's slip angle by the linear tire (front: v_y = v_x(α_f + δ) − l_f r,
+        # rear: v_y = v_x α_r + l_r r). Its error grows with the slip angle (stiffness
+        # uncertainty, k_rel) and with the sideslip acceleration |f_y − b_y − r v_x| (the
+        # tires are off their linear range while the car slides, k_vy); innovations beyond
+        # gate_vy σ are rejected: a saturated axle says nothing about v_y, and the
+        # integration (its drift held by b_y, learnt while the tires were linear) carries on.
+        beta_acc = abs(f_y[k] - x[BY] - r_now * x[VX])
+        d_f = 0.5 * (delta[k, 0] + delta[k, 1])
+        inflate = max(tau_vy / dt, 1.0) if dt > 0 else 1.0
+        for a in range(2):
+            alpha = axle_slip[k, a]
+            if np.isnan(alpha):
+                continue
+            z = (x[VX] * (alpha + d_f) - lf * r_now if a == 0 else x[VX] * alpha + lr * r_now)
+            sig = k_rel * abs(x[VX] * alpha) + k_vy * beta_acc
+            _lateral_update(x, P, h, z, alpha, r_vy, sig, inflate, s_side, gate_vy, ph)
+        # The biases are physically bounded (sensor bias plus a grade or bank of at most
+        # ~5 %): a larger value means slip or a sliding car is being explained away as bias.
+        x[BX] = min(max(x[BX], -bias_max), bias_max)
+        x[BY] = min(max(x[BY], -by_max), by_max)
         # History for ω̇, and inputs held over the next interval.
-        for j in range(m - 1):
-            for col in range(5):
-                hist[j, col] = hist[j + 1, col]
-        hist[m - 1, 0] = t[k]
+        hist[oldest, 0] = t[k]
         for i in range(4):
-            hist[m - 1, 1 + i] = omega[k, i]
+            hist[oldest, 1 + i] = omega[k, i]
+        state[6] = float((oldest + 1) % m)
         state[0] = t[k]
         state[2] = f_x[k]
         state[3] = f_y[k]
@@ -245,38 +313,52 @@ def reference_kernel(t: np.ndarray, omega: np.ndarray, torque: np.ndarray, mu_x:
         out_v[k, 1] = x[VY]
         out_sig[k, 0] = np.sqrt(max(P[VX, VX], 0.0))
         out_sig[k, 1] = np.sqrt(max(P[VY, VY], 0.0))
-        out_bias[k] = x[BX]
+        out_bias[k, 0] = x[BX]
+        out_bias[k, 1] = x[BY]
 
 
 class ReferenceFilter:
-    """Stateful wrapper of :func:`reference_kernel` (``reset``, ``advance``)."""
+    """Stateful wrapper of :func:`reference_kernel` (``reset``, ``advance``).
 
-    def __init__(self, radius: float, lr: float, xw: np.ndarray, yw: np.ndarray,
+    Args:
+        radius: wheel radius R, m.
+        lf, lr: CG to front / rear axle, m.
+        xw, yw: corner positions from the CG (fl, fr, rl, rr), m.
+        params: tuning.
+    """
+
+    def __init__(self, radius: float, lf: float, lr: float, xw: np.ndarray, yw: np.ndarray,
                  params: ReferenceParams | None = None) -> None:
         self.radius = radius
+        self.lf = lf
         self.lr = lr
         self.xw = np.ascontiguousarray(xw, dtype=float)
         self.yw = np.ascontiguousarray(yw, dtype=float)
         self.params = params or ReferenceParams()
         p = self.params
         self._prm = np.array([p.q_vx, p.q_vy, p.q_bias, p.r_wheel, p.k_mu, p.k_acc, p.slip_sign,
-                              p.gate, p.r_vy, p.k_vy, p.bias_max])
+                              p.gate, p.r_vy, p.k_vy, p.bias_max, p.q_bias_y, p.bias_y_max,
+                              p.k_rel, p.gate_vy, p.tau_vy, p.side_vy, p.tau_wheel,
+                              p.acc_dead])
         self.reset()
 
     def reset(self) -> None:
-        self._x = np.zeros(3)
-        self._P = np.zeros((3, 3))
+        self._x = np.zeros(4)
+        self._P = np.zeros((4, 4))
         self._hist = np.zeros((self.params.window, 5))
-        self._state = np.zeros(6)
+        self._state = np.zeros(7)
 
     def advance(self, t: np.ndarray, omega: np.ndarray, torque: np.ndarray, mu_x: np.ndarray,
-                rear_slip: np.ndarray, f_x: np.ndarray, f_y: np.ndarray, yaw_rate: np.ndarray,
+                axle_slip: np.ndarray, f_x: np.ndarray, f_y: np.ndarray, yaw_rate: np.ndarray,
                 delta: np.ndarray,
                 extra_v: np.ndarray | None = None,
                 extra_var: np.ndarray | None = None) -> dict[str, np.ndarray]:
-        """Process a chunk; returns v (n, 2) [v_x, v_y] m/s, sigma (n, 2), bias (n,), trust (n, 4).
+        """Process a chunk; returns v (n, 2) [v_x, v_y] m/s, sigma (n, 2), bias (n, 2) [b_x, b_y]
+        m/s², trust (n, 4).
 
-        ``rear_slip`` (n,) is the rear-axle slip angle estimate −F_yr/C_yr in rad.
+        ``axle_slip`` (n, 2) holds the front and rear axle slip angles −F_y/C_y in rad (NaN
+        where unknown); ``extra_v``/``extra_var`` (n, m) extra CG-speed measurements, m/s
+        and (m/s)², NaN where absent.
         """
         n = t.shape[0]
         if extra_v is None or extra_var is None:
@@ -284,11 +366,11 @@ class ReferenceFilter:
             extra_var = np.full((n, 0), np.nan)
         v = np.empty((n, 2))
         sig = np.empty((n, 2))
-        bias = np.empty(n)
+        bias = np.empty((n, 2))
         trust = np.empty((n, 4))
-        reference_kernel(t, omega, torque, mu_x, np.ascontiguousarray(rear_slip), f_x, f_y,
+        reference_kernel(t, omega, torque, mu_x, np.ascontiguousarray(axle_slip), f_x, f_y,
                          yaw_rate, delta,
                          np.ascontiguousarray(extra_v), np.ascontiguousarray(extra_var),
-                         self.radius, self.lr, self.xw, self.yw, self._prm, self._x, self._P, self._hist,
-                         self._state, v, sig, bias, trust)
+                         self.radius, self.lf, self.lr, self.xw, self.yw, self._prm, self._x,
+                         self._P, self._hist, self._state, v, sig, bias, trust)
         return {"v": v, "sigma": sig, "bias": bias, "trust": trust}
