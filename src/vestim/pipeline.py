@@ -272,8 +272,12 @@ class Pipeline:
         self.reset()
         u = inputs_from_log(log, self.vehicle)
         cols = self._columns(u.t, self._advance(u))
-        # One 2-D block: building a DataFrame from a dict of columns copies them twice.
-        return pd.DataFrame(np.column_stack(list(cols.values())), columns=list(cols))
+        # One 2-D block, filled row by row of its transpose (pandas stores a block as
+        # (columns, samples)), so each column is written contiguously and not copied again.
+        block = np.empty((len(cols), u.t.shape[0]))
+        for j, values in enumerate(cols.values()):
+            block[j] = values
+        return pd.DataFrame(block.T, columns=list(cols), copy=False)
 
     def step(self, sample: Mapping[str, float]) -> dict[str, float]:
         """Advance by one sample (mapping of the log's column names); return that row."""

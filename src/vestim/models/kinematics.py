@@ -1,6 +1,7 @@
 """Planar rigid-body kinematics between the CG, the wheel centres and the tire frames.
 
-Pure NumPy functions, vectorised over samples; arrays with a corner axis have
+Pure functions, vectorised over samples (the rotations are one-pass Numba loops);
+arrays with a corner axis have
 shape (n, 4) in the order fl, fr, rl, rr. Body axes ISO 8855 (x forward, y left).
 Corner i sits at (x_i, y_i) = (l_f, t_f/2), (l_f, −t_f/2), (−l_r, t_r/2), (−l_r, −t_r/2).
 
@@ -16,6 +17,7 @@ Corner i sits at (x_i, y_i) = (l_f, t_f/2), (l_f, −t_f/2), (−l_r, t_r/2), (�
 from __future__ import annotations
 
 import numpy as np
+from numba import njit
 
 from vestim.io.vehicle import Vehicle
 
@@ -50,18 +52,39 @@ def corner_accelerations(ax: np.ndarray, ay: np.ndarray, yaw_rate: np.ndarray,
             ay[:, None] + yaw_acc[:, None] * xw[None, :] - r2 * yw[None, :])
 
 
+@njit(cache=True, error_model="numpy")
+def _rotate(vx: np.ndarray, vy: np.ndarray, delta: np.ndarray, sign: float,
+            out_x: np.ndarray, out_y: np.ndarray) -> None:
+    """Rotate (v_x, v_y) by −sign·δ elementwise (flat arrays), one pass, no temporaries."""
+    for k in range(vx.shape[0]):
+        c = np.cos(delta[k])
+        s = sign * np.sin(delta[k])
+        out_x[k] = vx[k] * c + vy[k] * s
+        out_y[k] = -vx[k] * s + vy[k] * c
+
+
+def _rotated(vx: np.ndarray, vy: np.ndarray, delta: np.ndarray,
+             sign: float) -> tuple[np.ndarray, np.ndarray]:
+    vx, vy, delta = np.broadcast_arrays(*(np.asarray(a, dtype=float) for a in (vx, vy, delta)))
+    out_x = np.empty(vx.shape)
+    out_y = np.empty(vx.shape)
+    _rotate(np.ascontiguousarray(vx).reshape(-1), np.ascontiguousarray(vy).reshape(-1),
+            np.ascontiguousarray(delta).reshape(-1), sign, out_x.reshape(-1),
+            out_y.reshape(-1))
+    return out_x, out_y
+
+
 def to_tire_frame(vx: np.ndarray, vy: np.ndarray,
                   delta: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Body-frame vectors (n, 4) rotated into each wheel's frame by its steering angle δ (n, 4)."""
-    c, s = np.cos(delta), np.sin(delta)
-    return vx * c + vy * s, -vx * s + vy * c
+    """Body-frame vectors (n, 4) rotated into each wheel's frame by its steering angle δ (n, 4):
+    v_xt = v_x cos δ + v_y sin δ, v_yt = −v_x sin δ + v_y cos δ (000 eq. (28))."""
+    return _rotated(vx, vy, delta, 1.0)
 
 
 def to_body_frame(vxt: np.ndarray, vyt: np.ndarray,
                   delta: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Inverse of :func:`to_tire_frame`."""
-    c, s = np.cos(delta), np.sin(delta)
-    return vxt * c - vyt * s, vxt * s + vyt * c
+    return _rotated(vxt, vyt, delta, -1.0)
 
 
 def slip_ratio(omega: np.ndarray, vxt: np.ndarray, radius: float, eps: float = 0.1) -> np.ndarray:
