@@ -1,8 +1,8 @@
 """Planar rigid-body kinematics between the CG, the wheel centres and the tire frames.
 
 Pure functions, vectorised over samples (the rotations are one-pass Numba loops);
-arrays with a corner axis have
-shape (n, 4) in the order fl, fr, rl, rr. Body axes ISO 8855 (x forward, y left).
+arrays with a corner axis have shape (n, 4) in the order fl, fr, rl, rr. Body axes
+ISO 8855 (x forward, y left).
 Corner i sits at (x_i, y_i) = (l_f, t_f/2), (l_f, −t_f/2), (−l_r, t_r/2), (−l_r, −t_r/2).
 
 * Wheel-centre velocity (001 eq. (33), (42) read backwards): v_x,i = v_x − r y_i,
