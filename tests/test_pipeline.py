@@ -100,3 +100,16 @@ def test_cli_estimate_names_a_missing_column(tmp_path, log):
     write_log(log.drop(columns=["omega_fr"]), src)
     res = CliRunner().invoke(app, ["estimate", str(src), "--out", str(tmp_path / "o.csv")])
     assert res.exit_code == 2 and "omega_fr" in res.output and "Traceback" not in res.output
+
+
+def test_cli_estimate_without_torques_says_so(tmp_path, log):
+    """A CAN-style log without wheel torques is estimated; the metadata and console say how."""
+    src = tmp_path / "in.parquet"
+    write_log(strip(log).drop(columns=[f"torque_{c}" for c in ("fl", "fr", "rl", "rr")]), src)
+    out = tmp_path / "est.parquet"
+    res = CliRunner().invoke(app, ["estimate", str(src), "--out", str(out)])
+    assert res.exit_code == 0, res.output
+    assert "chassis equation" in res.output
+    est = read_log(out)
+    assert est.attrs["torque_source"] == "chassis" and est.attrs["roll_source"] == "rate"
+    assert np.isfinite(est["vx"]).all()

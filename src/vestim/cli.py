@@ -114,12 +114,22 @@ def estimate_cmd(
                                    gains=str(gains) if gains else None))
         log = read_log(log_path, require=["measured"], wheel_radius=veh.body.wheel_radius)
         t0 = time.perf_counter()
-        est = Pipeline(veh, cfg).run(log)
+        pipe = Pipeline(veh, cfg)
+        est = pipe.run(log)
         meta = {"vehicle": veh.name, "force": cfg.force, "normal": cfg.normal,
-                "velocity": cfg.velocity, "source": str(log_path)}
+                "velocity": cfg.velocity, "source": str(log_path), **pipe.force.input_sources}
         path = write_log(est, out, metadata=meta)
     except (VestimError, ValueError, OSError) as exc:
         raise _fail(exc) from None
+    if meta.get("torque_source") != "measured":
+        console.print("note: the log has no wheel torques; F_x comes from the chassis equation "
+                      "(m·a_x + drag) split by the vehicle file's [powertrain] front_drive_share "
+                      "and brake_front_share (vestim.models.chassis)")
+    missing = [k.split("_")[0] for k in ("roll_source", "pitch_source")
+               if meta.get(k) == "quasi_static"]
+    if missing:
+        console.print(f"note: no {'/'.join(missing)} rate: quasi-static attitude from the "
+                      "accelerations (suspension dynamics in the load transfer are lost)")
     console.print(f"wrote {path} ({len(est)} samples, {len(est.columns) - 1} channels, "
                   f"{time.perf_counter() - t0:.2f} s)")
 

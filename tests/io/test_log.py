@@ -355,6 +355,18 @@ def test_optional_imu_channels_are_not_required_by_measured() -> None:
     validate_log(_log().drop(columns=["az", "roll_rate", "pitch_rate"]), require=["measured"])
 
 
+def test_wheel_torques_are_optional_for_measured() -> None:
+    """Most CAN logs have no wheel torques; the force stage then uses the chassis equation."""
+    validate_log(_log().drop(columns=list(ch.TORQUES)), require=["measured"])
+
+
+def test_partial_wheel_torques_name_the_missing_ones_and_the_fix() -> None:
+    df = _log().drop(columns=["torque_rl", "torque_rr"])
+    with pytest.raises(LogFormatError, match=r"missing: torque_rl \[N·m\], torque_rr \[N·m\].*"
+                                             r"all four or none.*drop every torque_\* column"):
+        validate_log(df, require=["measured"])
+
+
 def test_required_column_with_wrong_case_gets_a_rename_hint() -> None:
     df = _log().rename(columns={"omega_fl": "Omega_FL"})
     with pytest.raises(LogFormatError, match=r"rename 'Omega_FL' → 'omega_fl'"):

@@ -41,8 +41,10 @@ MEASURED: tuple[str, ...] = (T, *WHEEL_SPEEDS, *TORQUES, *IMU, *STEERING)
 """All measured channels in spec order, optional ones (az, roll_rate, pitch_rate, delta,
 steering_wheel_angle) included."""
 
-MEASURED_REQUIRED: tuple[str, ...] = (T, *WHEEL_SPEEDS, *TORQUES, *IMU_REQUIRED)
-"""Mandatory measured channels apart from steering (which has alternatives, see STEERING)."""
+MEASURED_REQUIRED: tuple[str, ...] = (T, *WHEEL_SPEEDS, *IMU_REQUIRED)
+"""Mandatory measured channels apart from steering (which has alternatives, see STEERING).
+The wheel torques are all four or none: without them the force stage uses the chassis
+equation (:mod:`vestim.models.chassis`)."""
 
 # --- reference channels (ground truth, prefix ``ref_``) ---------------------------------------
 

@@ -39,17 +39,22 @@ METADATA_PREFIX = "vestim."
 """Prefix of vestim's keys in Parquet schema metadata."""
 
 REQUIRE_GROUPS: dict[str, tuple[str, ...]] = {
-    "measured": ch.MEASURED_REQUIRED,
+    "measured": (ch.T, *ch.WHEEL_SPEEDS, *ch.IMU_REQUIRED),
     "wheel_speeds": ch.WHEEL_SPEEDS,
     "torques": ch.TORQUES,
     "imu": ch.IMU_REQUIRED,
     "steering": (),
 }
-"""Group names accepted by ``require``. "measured" and "steering" also need a steering
-channel (delta_fl and delta_fr, or delta, or steering_wheel_angle); "imu" is the IMU
-channels the spec makes mandatory (ax, ay, yaw_rate)."""
+"""Group names accepted by ``require``. "measured" is what the estimators cannot do
+without: t, the wheel speeds, ax, ay, yaw_rate and a steering channel (delta_fl and
+delta_fr, or delta, or steering_wheel_angle; "steering" alone checks only that). The
+wheel torques are all-or-none under "measured": a log without any ``torque_*`` is
+accepted (the force stage then uses the chassis equation, most CAN logs have no wheel
+torques), one with some but not all four is an error; "torques" requires all four.
+az, roll_rate and pitch_rate are optional everywhere; "imu" is ax, ay, yaw_rate."""
 
 _NEEDS_STEERING = frozenset({"measured", "steering"})
+_TORQUES_ALL_OR_NONE = frozenset({"measured"})
 
 # Unit-plausibility limits (SI expected). Each is far beyond what a road car reaches in SI
 # yet is exceeded by typical signals recorded in the wrong unit.
@@ -386,6 +391,8 @@ def _check_required(df: pd.DataFrame, require: tuple[str, ...], source: str) -> 
         if item in REQUIRE_GROUPS:
             needed.extend(REQUIRE_GROUPS[item])
             needs_steering |= item in _NEEDS_STEERING
+            if item in _TORQUES_ALL_OR_NONE and any(c in cols for c in ch.TORQUES):
+                needed.extend(ch.TORQUES)  # some torques given: the rest are missing
         else:
             needed.append(item)
     missing = list(dict.fromkeys(c for c in needed if c not in cols))
@@ -395,9 +402,13 @@ def _check_required(df: pd.DataFrame, require: tuple[str, ...], source: str) -> 
                  if m.lower() in lookup and lookup[m.lower()] != m]
         hint = f" (rename {', '.join(hints)})" if hints else ""
         units = ", ".join(f"{m} [{ch.unit_of(m)}]" if ch.unit_of(m) else m for m in missing)
+        torque_fix = (" — wheel torques are all four or none: add the missing ones or drop "
+                      "every torque_* column (F_x then comes from the chassis equation)"
+                      if any(m in ch.TORQUES for m in missing)
+                      and _TORQUES_ALL_OR_NONE.intersection(require) else "")
         raise LogFormatError(
             f"{source}: required column(s) missing: {units}{hint}; add them in the spec's "
-            f"names and SI units (required: {', '.join(require)})"
+            f"names and SI units (required: {', '.join(require)}){torque_fix}"
         )
     if needs_steering and not (
         set(ch.ROAD_WHEEL_ANGLES) <= cols or ch.DELTA in cols or ch.STEERING_WHEEL_ANGLE in cols

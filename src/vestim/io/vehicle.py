@@ -149,7 +149,9 @@ class Aerodynamics:
 
 @dataclass(frozen=True)
 class Powertrain:
-    """``[powertrain]``: wheel-torque limits and splits used by the pedal maps.
+    """``[powertrain]``: wheel-torque limits and splits, used by the simulator's pedal maps
+    and (the two shares only) by the force stage for logs without wheel torques, where the
+    chassis-equation total is distributed over the axles (:mod:`vestim.models.chassis`).
 
     Defaults: 0.45·m·g·R of drive torque at the wheels, 60 W/kg of power,
     AWD front share 0.5, 1.0·m·g·R of brake torque, 65 % of it at the front,

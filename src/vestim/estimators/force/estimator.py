@@ -10,6 +10,21 @@ writes the spec's estimated channels ``fx_*``, ``fy_*``, ``fz_*``,
 the same compiled kernels on the same state, so a log fed sample by sample
 gives exactly the batch result. Only measured channels are read — never
 ``ref_`` columns.
+
+Missing channels (``shared/spec/log-format.md``; the gap of 001 Sec. VI):
+
+* no ``torque_*`` (all four absent; a partial set is an error): the net wheel
+  torques are reconstructed from the chassis equation and the drivetrain / brake
+  balance (:mod:`vestim.models.chassis`) and then go through the same
+  longitudinal estimator, so F_x,i = (T_i − I_w ω̇_i)/R − f F_z,i as with
+  measured torques. :attr:`ForceEstimator.torque_source` says "chassis".
+* no ``roll_rate`` / ``pitch_rate``: the attitude is the quasi-static roll and
+  pitch from a_y and a_x (:func:`.normal.attitude_kernel`), and the dynamic load
+  transfer uses the quasi-static elastic moments (:func:`.normal.normal_loads`):
+  the suspension's lag and overshoot and the damper moments are lost.
+* no ``az``: the road-normal specific force is taken as g (level road, no heave;
+  :func:`.normal.level_road_az`): road undulations and heave are lost, and a
+  grade or bank γ reduces the true value by the factor cos γ (0.1 % at 5 %).
 """
 
 from __future__ import annotations
@@ -20,7 +35,7 @@ from dataclasses import dataclass, field
 import numpy as np
 import pandas as pd
 
-from vestim.constants import CORNERS, G
+from vestim.constants import CORNERS
 from vestim.errors import LogFormatError
 from vestim.estimators.force import lateral as lat
 from vestim.estimators.force import longitudinal as lon
@@ -28,9 +43,11 @@ from vestim.estimators.force import normal as nrm
 from vestim.filters.ukf import ukf_weights
 from vestim.io.log import road_wheel_angles
 from vestim.io.vehicle import Vehicle
+from vestim.models import chassis
 
-REQUIRED = ("t", *[f"omega_{c}" for c in CORNERS], *[f"torque_{c}" for c in CORNERS], "ax", "ay",
-            "yaw_rate")
+TORQUES: tuple[str, ...] = tuple(f"torque_{c}" for c in CORNERS)
+REQUIRED = ("t", *[f"omega_{c}" for c in CORNERS], "ax", "ay", "yaw_rate")
+"""Channels the force stage cannot do without; the torques are all-or-none (see module doc)."""
 
 
 @dataclass(frozen=True)
@@ -62,7 +79,19 @@ class ForceConfig:
 
 @dataclass
 class Inputs:
-    """Measured channels of a chunk as contiguous float arrays."""
+    """Measured channels of a chunk as contiguous float arrays (SI units, spec names).
+
+    A channel the log does not have is NaN (``az``, ``roll_rate``, ``pitch_rate``,
+    all four ``torque`` columns) and its ``*_measured`` flag is False.
+    :meth:`ForceEstimator.advance` replaces a NaN ``torque`` by the chassis-equation
+    torques it used, so later stages (the reference-speed filter's slip evidence)
+    see the same torques as the force stage.
+
+    Attributes:
+        t: (n,) s. omega: (n, 4) rad/s. torque: (n, 4) N m, net drive minus brake.
+        ax, ay, az: (n,) m/s², specific force. yaw_rate, roll_rate, pitch_rate: (n,) rad/s.
+        delta: (n, 4) rad, road-wheel angles, rear wheels 0.
+    """
 
     t: np.ndarray
     omega: np.ndarray
@@ -73,7 +102,33 @@ class Inputs:
     yaw_rate: np.ndarray
     roll_rate: np.ndarray
     pitch_rate: np.ndarray
-    delta: np.ndarray  # (n, 4), rear wheels 0
+    delta: np.ndarray
+    torque_measured: bool = True
+    az_measured: bool = True
+    roll_rate_measured: bool = True
+    pitch_rate_measured: bool = True
+
+    @property
+    def sources(self) -> dict[str, str]:
+        """Where each optional input comes from (see :attr:`ForceEstimator.input_sources`)."""
+        return {
+            "torque_source": "measured" if self.torque_measured else "chassis",
+            "roll_source": "rate" if self.roll_rate_measured else "quasi_static",
+            "pitch_source": "rate" if self.pitch_rate_measured else "quasi_static",
+            "az_source": "measured" if self.az_measured else "level_road",
+        }
+
+
+def _check_torques(present: set[str] | Mapping[str, float], what: str) -> bool:
+    """True if all four torques are present, False if none; else a LogFormatError naming them."""
+    have = [c for c in TORQUES if c in present]
+    if len(have) in (0, len(TORQUES)):
+        return len(have) == len(TORQUES)
+    missing = [c for c in TORQUES if c not in present]
+    raise LogFormatError(
+        f"the {what} has wheel torque(s) {', '.join(have)} but not {', '.join(missing)}: give "
+        "all four net wheel torques (drive minus brake, N·m) or drop every torque_* column, "
+        "in which case F_x comes from the chassis equation (vestim.models.chassis)")
 
 
 def _column(log: pd.DataFrame, name: str, default: float) -> np.ndarray:
@@ -83,21 +138,35 @@ def _column(log: pd.DataFrame, name: str, default: float) -> np.ndarray:
 
 
 def inputs_from_log(log: pd.DataFrame, vehicle: Vehicle) -> Inputs:
-    """Extract and check the measured channels the force stage needs (never ``ref_``)."""
+    """Extract and check the measured channels the force stage needs (never ``ref_``).
+
+    Required: ``t``, ``omega_*``, ``ax``, ``ay``, ``yaw_rate`` and a steering channel.
+    Optional: the four ``torque_*`` together, ``az``, ``roll_rate``, ``pitch_rate``
+    (NaN in :class:`Inputs` when absent; see the module docstring for what is lost).
+
+    Raises:
+        LogFormatError: a required column is missing, or only some of the torques are there.
+    """
     missing = [c for c in REQUIRED if c not in log.columns]
     if missing:
         raise LogFormatError(f"the force estimators need column(s) {', '.join(missing)}; "
                              "add them to the log (see shared/spec/log-format.md)")
+    cols = set(log.columns)
+    has_torque = _check_torques(cols, "log")
     front = road_wheel_angles(log, vehicle.body.steering_ratio)
     delta = np.zeros((len(log), 4))
     delta[:, :2] = front
+    torque = (np.ascontiguousarray(log[list(TORQUES)].to_numpy(dtype=float)) if has_torque
+              else np.full((len(log), 4), np.nan))
     return Inputs(
         t=np.ascontiguousarray(log["t"].to_numpy(dtype=float)),
         omega=np.ascontiguousarray(log[[f"omega_{c}" for c in CORNERS]].to_numpy(dtype=float)),
-        torque=np.ascontiguousarray(log[[f"torque_{c}" for c in CORNERS]].to_numpy(dtype=float)),
-        ax=_column(log, "ax", 0.0), ay=_column(log, "ay", 0.0), az=_column(log, "az", G),
+        torque=torque,
+        ax=_column(log, "ax", 0.0), ay=_column(log, "ay", 0.0), az=_column(log, "az", np.nan),
         yaw_rate=_column(log, "yaw_rate", 0.0), roll_rate=_column(log, "roll_rate", np.nan),
         pitch_rate=_column(log, "pitch_rate", np.nan), delta=delta,
+        torque_measured=has_torque, az_measured="az" in cols,
+        roll_rate_measured="roll_rate" in cols, pitch_rate_measured="pitch_rate" in cols,
     )
 
 
@@ -130,7 +199,9 @@ class ForceEstimator:
 
     Args:
         vehicle: the vehicle file (uses [vehicle], [tire]; [suspension] and
-            [aerodynamics] with their defaults for load transfer and drag).
+            [aerodynamics] with their defaults for load transfer and drag;
+            [powertrain] front_drive_share and brake_front_share for logs without
+            wheel torques).
         config: methods and parameters.
     """
 
@@ -156,31 +227,72 @@ class ForceEstimator:
         cfg = self.config
         self._lon = lon.LongitudinalEstimator(self.vehicle, cfg.longitudinal, cfg.ukf, cfg.pid,
                                               cfg.uio)
+        # For logs without torques: the same method fed zero torque estimates the wheels'
+        # inertial force −I_w ω̇_i/R alone (every method is linear in the torque).
+        self._lon_inertia = lon.LongitudinalEstimator(self.vehicle, cfg.longitudinal, cfg.ukf,
+                                                      cfg.pid, cfg.uio)
         self._att = np.zeros(4)
         self._lat_x = np.zeros(lat.N_X)
         self._lat_P = np.zeros((lat.N_X, lat.N_X))
         self._lat_state = np.zeros(10)
+        self._seen: dict[str, set[str]] = {}
+
+    @property
+    def input_sources(self) -> dict[str, str]:
+        """Where the optional inputs came from since the last reset, for output metadata.
+
+        Keys ``torque_source`` ("measured" | "chassis": the chassis equation of
+        :mod:`vestim.models.chassis`), ``roll_source`` and ``pitch_source`` ("rate" |
+        "quasi_static"), ``az_source`` ("measured" | "level_road"); a value is "mixed"
+        when samples of both kinds were processed, and the dict is empty before any.
+        """
+        return {k: next(iter(v)) if len(v) == 1 else "mixed" for k, v in self._seen.items()}
+
+    @property
+    def torque_source(self) -> str | None:
+        """"measured", "chassis" or "mixed" since the last reset; None before any sample."""
+        return self.input_sources.get("torque_source")
 
     def advance(self, u: Inputs) -> dict[str, np.ndarray]:
-        """Process a chunk of measured inputs; arrays of forces (n, 4), angles and road-frame
-        specific force (n,). State carries over to the next call."""
+        """Process a chunk of measured inputs; state carries over to the next call.
+
+        Returns arrays: ``fx``, ``sigma_fx``, ``fy``, ``sigma_fy``, ``fz`` (n, 4) in N;
+        ``roll``, ``pitch`` (n,) in rad; road-plane specific force ``f_x``, ``f_y``,
+        ``f_z`` (n,) in m/s²; ``torque`` (n, 4) in N m, the net wheel torques used
+        (measured, or from the chassis equation, in which case ``u.torque`` is set to
+        them too).
+        """
         n = u.t.shape[0]
         b = self.vehicle.body
         cfg = self.config
+        for key, value in u.sources.items():
+            self._seen.setdefault(key, set()).add(value)
         roll = np.empty(n)
         pitch = np.empty(n)
         nrm.attitude_kernel(u.t, u.ax, u.ay, u.roll_rate, u.pitch_rate, cfg.roll_gain,
                             cfg.pitch_gain, self._c_roll, self._c_pitch, self._att, roll, pitch)
-        f_x, f_y, f_z = nrm.road_specific_force(u.ax, u.ay, u.az, roll, pitch)
+        az = u.az if u.az_measured else nrm.level_road_az(u.ax, u.ay, roll, pitch)
+        f_x, f_y, f_z = nrm.road_specific_force(u.ax, u.ay, az, roll, pitch)
         fz = nrm.normal_loads(f_x, f_y, f_z, roll, pitch, u.roll_rate, u.pitch_rate,
                               self.vehicle, cfg.normal)
+        if not u.torque_measured:
+            # Equivalent net wheel torques from the chassis equation (models.chassis eq. (2)),
+            # handed back in u so that later stages use the same torques. Its I_w Σω̇ term
+            # comes from the same longitudinal method run on zero torque, whose output is
+            # −I_w ω̇̂_i/R: the main run then subtracts the same ω̇̂_i, so a wheel spinning
+            # up keeps only its share of the tire force.
+            f_inertia, _ = self._lon_inertia.advance(u.t, u.omega, np.zeros_like(u.omega))
+            omega_dot = -b.wheel_radius / b.wheel_inertia * f_inertia
+            u.torque = np.ascontiguousarray(
+                chassis.chassis_wheel_torques(f_x, f_y, u.delta[:, :2].mean(axis=1), fz,
+                                              u.omega, self.vehicle, omega_dot))
         # Rolling resistance acts on the wheel as a moment f·R·F_z (the ground force
         # of a free-rolling tire is −f·F_z); 000 eq. (1) omits it, which biases F_x
         # by f·F_z ≈ 65 N per SUV corner. The estimators see the effective torque.
         rr = self.vehicle.aerodynamics.rolling_resistance * b.wheel_radius * fz
         # The moment fades out below |ω| = 3 rad/s (1 m/s): a sharper switch would
         # flip with the wheel-speed noise (σ 0.42 rad/s) at standstill.
-        torque = np.ascontiguousarray(u.torque - rr * np.clip(u.omega / 3.0, -1.0, 1.0))
+        torque = np.ascontiguousarray(u.torque - rr * chassis.rolling_sign(u.omega))
         fx, sig_fx = self._lon.advance(u.t, u.omega, torque)
         drag = self._drag_coef * (b.wheel_radius * u.omega.mean(axis=1)) ** 2
         fy = np.empty((n, 4))
@@ -193,7 +305,8 @@ class ForceEstimator:
                            self._w4, self._c4, self._tau4, self._lat_x, self._lat_P,
                            self._lat_state, fy, sig_fy)
         return {"fx": fx, "sigma_fx": sig_fx, "fy": fy, "sigma_fy": sig_fy, "fz": fz,
-                "roll": roll, "pitch": pitch, "f_x": f_x, "f_y": f_y, "f_z": f_z}
+                "roll": roll, "pitch": pitch, "f_x": f_x, "f_y": f_y, "f_z": f_z,
+                "torque": u.torque}
 
     def run(self, log: pd.DataFrame) -> pd.DataFrame:
         """Estimate forces over a whole log (state reset first). Returns the estimated channels."""
@@ -215,6 +328,7 @@ class ForceEstimator:
         if missing:
             raise LogFormatError(f"the force estimators need channel(s) {', '.join(missing)} "
                                  "in every sample")
+        has_torque = _check_torques(sample, "sample")
         if "delta_fl" in sample and "delta_fr" in sample:
             front = (sample["delta_fl"], sample["delta_fr"])
         elif "delta" in sample:
@@ -232,8 +346,12 @@ class ForceEstimator:
         return Inputs(
             t=one("t", np.nan),
             omega=np.array([[float(sample[f"omega_{c}"]) for c in CORNERS]]),
-            torque=np.array([[float(sample[f"torque_{c}"]) for c in CORNERS]]),
-            ax=one("ax", 0.0), ay=one("ay", 0.0), az=one("az", G), yaw_rate=one("yaw_rate", 0.0),
-            roll_rate=one("roll_rate", np.nan), pitch_rate=one("pitch_rate", np.nan),
+            torque=(np.array([[float(sample[c]) for c in TORQUES]]) if has_torque
+                    else np.full((1, 4), np.nan)),
+            ax=one("ax", 0.0), ay=one("ay", 0.0), az=one("az", np.nan),
+            yaw_rate=one("yaw_rate", 0.0), roll_rate=one("roll_rate", np.nan),
+            pitch_rate=one("pitch_rate", np.nan),
             delta=np.array([[float(front[0]), float(front[1]), 0.0, 0.0]]),
+            torque_measured=has_torque, az_measured="az" in sample,
+            roll_rate_measured="roll_rate" in sample, pitch_rate_measured="pitch_rate" in sample,
         )
