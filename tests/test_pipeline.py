@@ -23,12 +23,14 @@ def strip(log: pd.DataFrame) -> pd.DataFrame:
     return log.drop(columns=[c for c in log.columns if c.startswith("ref_")])
 
 
-@pytest.mark.parametrize("velocity", ["reference", "kinematic", "fused", "kf", "lpv"])
-def test_step_equals_run(log, velocity):
+@pytest.mark.parametrize(("velocity", "fusion"), [("reference", "axle"), ("kinematic", "axle"),
+                                                  ("fused", "axle"), ("fused", "opinion"),
+                                                  ("kf", "adaptive"), ("lpv", "axle")])
+def test_step_equals_run(log, velocity, fusion):
     """Feeding the log sample by sample gives the batch result exactly."""
     part = strip(log).iloc[:200]
-    batch = Pipeline(SUV, PipelineConfig(velocity=velocity)).run(part)
-    online = Pipeline(SUV, PipelineConfig(velocity=velocity))
+    batch = Pipeline(SUV, PipelineConfig(velocity=velocity, fusion=fusion)).run(part)
+    online = Pipeline(SUV, PipelineConfig(velocity=velocity, fusion=fusion))
     rows = pd.DataFrame([online.step(r) for r in part.to_dict("records")])[batch.columns]
     np.testing.assert_allclose(rows.to_numpy(), batch.to_numpy(), rtol=1e-12, atol=1e-9)
 
@@ -113,3 +115,23 @@ def test_cli_estimate_without_torques_says_so(tmp_path, log):
     est = read_log(out)
     assert est.attrs["torque_source"] == "chassis" and est.attrs["roll_source"] == "rate"
     assert np.isfinite(est["vx"]).all()
+
+
+def test_opinion_fusion_writes_confidences_and_downweights_a_spinning_corner():
+    """RWD launch on split μ: the rear-left wheel spins on ice (slip ratio ≈ 0.9 against
+    the vehicle speed) while the others roll. 003 eq. (6) gives it W = 25(1 − 0.9) ≈ 2.5
+    (bounded by ±20 %), the rolling corners the cap 25 of γ = 29 (eq. (13)), so the spinning
+    corner's mean confidence during the launch is under a fifth of the others'."""
+    run = simulate(get_maneuver("launch_split_mu", tire="lugre", drivetrain="rwd"), SUV, seed=1)
+    est = Pipeline(SUV, PipelineConfig(velocity="kf", fusion="opinion")).run(strip(run))
+    launch = (run["t"] > 1.5) & (run["t"] < 5.5)
+    conf = est.loc[launch, [f"confidence_{c}" for c in ("fl", "fr", "rl", "rr")]].mean()
+    spinning = conf.idxmin()
+    assert run.loc[launch, f"ref_slip_ratio_{spinning[-2:]}"].mean() > 0.5
+    assert conf[spinning] < 0.2 * conf.drop(spinning).min()
+    assert conf.drop(spinning).min() == pytest.approx(25.0, abs=1.0)
+
+
+def test_unknown_fusion_is_named():
+    with pytest.raises(PipelineConfigError, match="fusion method 'mean'"):
+        PipelineConfig(fusion="mean")

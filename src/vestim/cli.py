@@ -88,8 +88,10 @@ def estimate_cmd(
     log_path: Annotated[Path, typer.Argument(metavar="LOG", help="Drive log (.csv or .parquet).")],
     out: Annotated[Path, typer.Option("--out", help="Output log of estimates (.csv or .parquet).")],
     vehicle: VehicleOpt = "hashemi_suv",
-    velocity: Annotated[str, typer.Option(help="Velocity stage: reference | fused | kinematic | kf | "
-                                          "ukf | lpv.")] = "reference",
+    velocity: Annotated[str, typer.Option(help="Velocity stage: fused (default) | reference | "
+                                          "kinematic | kf | ukf | lpv.")] = PipelineConfig.velocity,
+    fusion: Annotated[str, typer.Option(help="Corner-to-CG fusion: axle | adaptive | opinion "
+                                        "(writes confidence_*).")] = PipelineConfig.fusion,
     force: Annotated[str, typer.Option(help="Longitudinal force: ukf | ukf_rw | pid | uio | naive.")] = "ukf",
     normal: Annotated[str, typer.Option(help="Load transfer: dynamic | static.")] = "dynamic",
     gains: Annotated[Path | None, typer.Option(help="Gains file of `vestim design lpv` for "
@@ -110,14 +112,15 @@ def estimate_cmd(
     try:
         veh = load_vehicle(vehicle)
         cfg = (PipelineConfig.from_toml(config) if config is not None
-               else PipelineConfig(force=force, normal=normal, velocity=velocity,
+               else PipelineConfig(force=force, normal=normal, velocity=velocity, fusion=fusion,
                                    gains=str(gains) if gains else None))
         log = read_log(log_path, require=["measured"], wheel_radius=veh.body.wheel_radius)
         t0 = time.perf_counter()
         pipe = Pipeline(veh, cfg)
         est = pipe.run(log)
         meta = {"vehicle": veh.name, "force": cfg.force, "normal": cfg.normal,
-                "velocity": cfg.velocity, "source": str(log_path), **pipe.force.input_sources}
+                "velocity": cfg.velocity, "fusion": cfg.fusion, "source": str(log_path),
+                **pipe.force.input_sources}
         path = write_log(est, out, metadata=meta)
     except (VestimError, ValueError, OSError) as exc:
         raise _fail(exc) from None

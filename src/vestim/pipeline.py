@@ -32,6 +32,7 @@ from vestim.errors import VestimError
 from vestim.estimators.force import ForceConfig, ForceEstimator
 from vestim.estimators.force.estimator import force_columns, inputs_from_log
 from vestim.estimators.force.longitudinal import METHODS as FORCE_METHODS
+from vestim.estimators.fusion import FUSION_METHODS, FusionParams, confidences, fuse
 from vestim.estimators.velocity.corner import CornerVelocityEstimator, CornerVelocityInput
 from vestim.estimators.velocity.kinematic import KinematicIntegrator
 from vestim.estimators.velocity.lpv_observer import GainSchedule as LPVGains
@@ -57,10 +58,15 @@ class PipelineConfig:
         normal: elastic load transfer, "dynamic" or "static".
         velocity: "reference" (default: the ABS/ESC-style filter), "fused" (the reference
             filter with the LuGre KF corner estimates as extra measurements), "kinematic"
-            (000 eq. (15)), or a corner observer mapped to the CG with fixed axle
-            weights η1 = η2 = 0.5 (001 eq. (34)): "kf" (000 eq. (16)–(23)), "ukf"
-            (003 Alg. 1), "lpv" (001 eq. (22)–(24), (36)–(38)).
+            (000 eq. (15)), or a corner observer mapped to the CG by the fusion stage:
+            "kf" (000 eq. (16)–(23)), "ukf" (003 Alg. 1), "lpv" (001 eq. (22)–(24),
+            (36)–(38)).
+        fusion: how the four corner observers' estimates, mapped to the CG, become one
+            (:mod:`vestim.estimators.fusion`): "axle" (fixed η1 = η2 = 0.5), "adaptive"
+            (001 eq. (34)–(35)), "opinion" (003 eq. (5)–(13); writes ``confidence_*``).
+            Used by the corner methods and by "fused" for its corner measurement.
         reference: parameters of the reference filter.
+        fusion_params: parameters of the fusion stage.
         gains: path of a gains file from ``vestim design lpv`` for the "lpv" observers
             (default: 001's constant gains).
     """
@@ -68,7 +74,9 @@ class PipelineConfig:
     force: str = "ukf"
     normal: str = "dynamic"
     velocity: str = "fused"
+    fusion: str = "axle"
     reference: ReferenceParams = field(default_factory=ReferenceParams)
+    fusion_params: FusionParams = field(default_factory=FusionParams)
     gains: str | None = None
 
     def __post_init__(self) -> None:
@@ -78,17 +86,21 @@ class PipelineConfig:
         if self.velocity not in VELOCITY_METHODS:
             raise PipelineConfigError(f"velocity method {self.velocity!r}: use one of "
                                       f"{', '.join(VELOCITY_METHODS)}")
+        if self.fusion not in FUSION_METHODS:
+            raise PipelineConfigError(f"fusion method {self.fusion!r}: use one of "
+                                      f"{', '.join(FUSION_METHODS)}")
         if self.normal not in ("dynamic", "static"):
             raise PipelineConfigError(f"normal-load mode {self.normal!r}: use dynamic or static")
 
     @classmethod
     def from_toml(cls, path: str | Path) -> PipelineConfig:
-        """Read the ``[pipeline]`` table of a TOML file (keys: force, normal, velocity, gains)."""
+        """Read the ``[pipeline]`` table of a TOML file (keys: force, normal, velocity, fusion,
+        gains)."""
         data = tomllib.loads(Path(path).read_text(encoding="utf-8"))
         table = data.get("pipeline")
         if not isinstance(table, dict):
             raise PipelineConfigError(f"{path}: no [pipeline] table")
-        allowed = {f.name for f in fields(cls)} - {"reference"}
+        allowed = {f.name for f in fields(cls)} - {"reference", "fusion_params"}
         unknown = sorted(set(table) - allowed)
         if unknown:
             raise PipelineConfigError(f"{path}: [pipeline] has unknown key(s) {', '.join(unknown)};"
@@ -162,6 +174,26 @@ class Pipeline:
         vx_cg, _ = kin.corners_to_cg(vx_b, np.zeros_like(vx_b), u.yaw_rate, self._xw, self._yw)
         return np.asarray(vx_cg)
 
+    def _fuse_corners(self, out: Any, u: Any, res: dict[str, np.ndarray],
+                      v_ref: np.ndarray) -> np.ndarray:
+        """The corner observers' CG v_x (n,) by the configured fusion (003 Alg. 2).
+
+        The slip ratio that sets each corner's confidence (003 eq. (6)) and the adaptive
+        axle weights (001 eq. (34)) is taken against the reference filter's velocity
+        ``v_ref`` (n, 2) mapped to that corner, not against the corner's own v̂_xt: a
+        corner observer that has drifted towards R·ω would otherwise report a small slip
+        and keep its confidence (split-μ RWD launch: the high-μ rear wheel's KF is 4 m/s
+        off while its own slip reads 0.03). Stores the opinion confidences in ``res``.
+        """
+        cfg = self.config
+        vx_i, vy_i = kin.cg_to_corners(v_ref[:, 0], v_ref[:, 1], u.yaw_rate, self._xw, self._yw)
+        vxt, _ = kin.to_tire_frame(vx_i, vy_i, u.delta)
+        slip = kin.slip_ratio(u.omega, vxt, self.vehicle.body.wheel_radius)
+        vx, _ = fuse(cfg.fusion, self._corner_cg(out, u), slip, cfg.fusion_params)
+        if cfg.fusion == "opinion":
+            res["confidence"] = confidences(slip, cfg.fusion_params)
+        return vx
+
     def _corners(self, u: Any, res: dict[str, np.ndarray], mu_x: np.ndarray,
                  vy: np.ndarray | None) -> Any:
         """Run the corner observer (inputs as in corner_inputs: 001 text after eq. (21)).
@@ -221,13 +253,13 @@ class Pipeline:
             ref = self.reference.advance(u.t, u.omega, u.torque, mu_x_c, axle_slip, res["f_x"],
                                          res["f_y"], u.yaw_rate, u.delta)
             out = self._corners(u, res, mu_x_c, ref["v"][:, 1])
-            vx_cg = self._corner_cg(out, u)
+            vx_corner = self._fuse_corners(out, u, res, ref["v"])
             p = self.config.reference
-            all_slip = out.high_slip.sum(axis=1, keepdims=True) >= 3
-            vx_cg = np.where(all_slip, vx_cg, np.nan)
-            var = np.where(all_slip, p.sigma_corner_slip**2, np.nan) * np.ones_like(vx_cg)
+            all_slip = out.high_slip.sum(axis=1) >= 3
+            extra = np.where(all_slip, vx_corner, np.nan)[:, None]
+            var = np.where(all_slip, p.sigma_corner_slip**2, np.nan)[:, None]
             vel = self.fused.advance(u.t, u.omega, u.torque, mu_x_c, axle_slip, res["f_x"],
-                                     res["f_y"], u.yaw_rate, u.delta, vx_cg, var)
+                                     res["f_y"], u.yaw_rate, u.delta, extra, var)
             v, sig, bias = vel["v"], vel["sigma"], vel["bias"][:, 0]
         else:
             vel = self.reference.advance(u.t, u.omega, u.torque, mu_x_c, axle_slip, res["f_x"],
@@ -235,9 +267,8 @@ class Pipeline:
             v, sig, bias = vel["v"], vel["sigma"], vel["bias"][:, 0]
             if self.corner is not None:
                 out = self._corners(u, res, mu_x_c, v[:, 1])
-                vx_cg = self._corner_cg(out, u)
-                # Fixed axle weights η1 = η2 = 0.5 (001 eq. (34)); v_y from the reference filter.
-                v = np.column_stack((vx_cg.mean(axis=1), v[:, 1]))
+                # CG v_x by the fusion stage; v_y from the reference filter.
+                v = np.column_stack((self._fuse_corners(out, u, res, v), v[:, 1]))
                 sig = np.full_like(v, np.nan)
         vx_i, vy_i = kin.cg_to_corners(v[:, 0], v[:, 1], u.yaw_rate, self._xw, self._yw)
         vxt, vyt = kin.to_tire_frame(vx_i, vy_i, u.delta)
@@ -265,6 +296,9 @@ class Pipeline:
         cols.update(forces)
         if not np.all(np.isnan(res["bias"])):
             cols["bias_ax"] = res["bias"]
+        if "confidence" in res:
+            for i, c in enumerate(CORNERS):
+                cols[f"confidence_{c}"] = res["confidence"][:, i]
         return cols
 
     def run(self, log: pd.DataFrame) -> pd.DataFrame:
