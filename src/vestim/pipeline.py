@@ -30,7 +30,13 @@ import pandas as pd
 from vestim.constants import CORNERS
 from vestim.errors import VestimError
 from vestim.estimators.force import ForceConfig, ForceEstimator
-from vestim.estimators.force.estimator import force_columns, inputs_from_log
+from vestim.estimators.force.estimator import (
+    ColumnGroup,
+    columns_from_groups,
+    force_groups,
+    frame_from_groups,
+    inputs_from_log,
+)
 from vestim.estimators.force.longitudinal import METHODS as FORCE_METHODS
 from vestim.estimators.fusion import FUSION_METHODS, FusionParams, confidences, fuse
 from vestim.estimators.velocity.corner import CornerVelocityEstimator, CornerVelocityInput
@@ -279,42 +285,33 @@ class Pipeline:
         return res
 
     @staticmethod
-    def _columns(t: np.ndarray, res: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
-        cols: dict[str, np.ndarray] = {"t": t, "vx": res["v"][:, 0], "vy": res["v"][:, 1]}
+    def _groups(t: np.ndarray, res: dict[str, np.ndarray]) -> list[ColumnGroup]:
+        """The output channels grouped by quantity (see :func:`force_groups`)."""
+
+        def names(prefix: str) -> list[str]:
+            return [f"{prefix}_{c}" for c in CORNERS]
+
+        groups: list[ColumnGroup] = [(["t"], t), (["vx", "vy"], res["v"])]
         if not np.all(np.isnan(res["sigma_v"])):
-            cols["sigma_vx"] = res["sigma_v"][:, 0]
-            cols["sigma_vy"] = res["sigma_v"][:, 1]
-        for i, c in enumerate(CORNERS):
-            cols[f"vx_{c}"] = res["vx_i"][:, i]
-            cols[f"vy_{c}"] = res["vy_i"][:, i]
-            cols[f"vxt_{c}"] = res["vxt"][:, i]
-            cols[f"vyt_{c}"] = res["vyt"][:, i]
-            cols[f"slip_ratio_{c}"] = res["slip_ratio"][:, i]
-            cols[f"slip_angle_{c}"] = res["slip_angle"][:, i]
-        forces = force_columns(t, res)
-        del forces["t"]
-        cols.update(forces)
+            groups.append((["sigma_vx", "sigma_vy"], res["sigma_v"]))
+        groups += [(names("vx"), res["vx_i"]), (names("vy"), res["vy_i"]),
+                   (names("vxt"), res["vxt"]), (names("vyt"), res["vyt"]),
+                   (names("slip_ratio"), res["slip_ratio"]),
+                   (names("slip_angle"), res["slip_angle"]), *force_groups(res)]
         if not np.all(np.isnan(res["bias"])):
-            cols["bias_ax"] = res["bias"]
+            groups.append((["bias_ax"], res["bias"]))
         if "confidence" in res:
-            for i, c in enumerate(CORNERS):
-                cols[f"confidence_{c}"] = res["confidence"][:, i]
-        return cols
+            groups.append((names("confidence"), res["confidence"]))
+        return groups
 
     def run(self, log: pd.DataFrame) -> pd.DataFrame:
         """Estimate over a whole log (state reset first); returns the estimated channels."""
         self.reset()
         u = inputs_from_log(log, self.vehicle)
-        cols = self._columns(u.t, self._advance(u))
-        # One 2-D block, filled row by row of its transpose (pandas stores a block as
-        # (columns, samples)), so each column is written contiguously and not copied again.
-        block = np.empty((len(cols), u.t.shape[0]))
-        for j, values in enumerate(cols.values()):
-            block[j] = values
-        return pd.DataFrame(block.T, columns=list(cols), copy=False)
+        return frame_from_groups(self._groups(u.t, self._advance(u)), u.t.shape[0])
 
     def step(self, sample: Mapping[str, float]) -> dict[str, float]:
         """Advance by one sample (mapping of the log's column names); return that row."""
         u = self.force._inputs_from_sample(sample)
-        cols = self._columns(u.t, self._advance(u))
+        cols = columns_from_groups(self._groups(u.t, self._advance(u)))
         return {k: float(v[0]) for k, v in cols.items()}

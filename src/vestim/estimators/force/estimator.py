@@ -170,28 +170,62 @@ def inputs_from_log(log: pd.DataFrame, vehicle: Vehicle) -> Inputs:
     )
 
 
-def force_columns(t: np.ndarray, res: Mapping[str, np.ndarray]) -> dict[str, np.ndarray]:
-    """Spec columns of the force stage from :meth:`ForceEstimator.advance`'s result.
+ColumnGroup = tuple[list[str], np.ndarray]
+"""Spec column names and their values: (n,) for one name, (n, k) for k names."""
 
-    ``mu_x_*``/``mu_y_*`` are 0 where F_z ≤ 1 N (a lifted wheel); ``sigma_fx_*`` only
-    for methods that have one.
+
+def force_groups(res: Mapping[str, np.ndarray]) -> list[ColumnGroup]:
+    """Spec channels of the force stage from :meth:`ForceEstimator.advance`'s result, grouped
+    by quantity (``fx_fl … fx_rr``, ``fy_*``, ``fz_*``, ``mu_x_*``, ``mu_y_*``, ``sigma_fx_*``
+    only for methods that have one, ``sigma_fy_*``, ``roll``, ``pitch``).
+
+    ``mu_x_*``/``mu_y_*`` are 0 where F_z ≤ 1 N (a lifted wheel).
     """
-    cols: dict[str, np.ndarray] = {"t": t}
-    fz_all = res["fz"]
-    for i, c in enumerate(CORNERS):
-        fz, fx, fy = fz_all[:, i], res["fx"][:, i], res["fy"][:, i]
-        cols[f"fx_{c}"] = fx
-        cols[f"fy_{c}"] = fy
-        cols[f"fz_{c}"] = fz
-        with np.errstate(divide="ignore", invalid="ignore"):
-            cols[f"mu_x_{c}"] = np.where(fz > 1.0, fx / fz, 0.0)
-            cols[f"mu_y_{c}"] = np.where(fz > 1.0, fy / fz, 0.0)
-        if not np.all(np.isnan(res["sigma_fx"][:, i])):
-            cols[f"sigma_fx_{c}"] = res["sigma_fx"][:, i]
-        cols[f"sigma_fy_{c}"] = res["sigma_fy"][:, i]
-    cols["roll"] = res["roll"]
-    cols["pitch"] = res["pitch"]
+    fz = res["fz"]
+
+    def names(prefix: str) -> list[str]:
+        return [f"{prefix}_{c}" for c in CORNERS]
+
+    with np.errstate(divide="ignore", invalid="ignore"):
+        mu_x = np.where(fz > 1.0, res["fx"] / fz, 0.0)
+        mu_y = np.where(fz > 1.0, res["fy"] / fz, 0.0)
+    groups: list[ColumnGroup] = [(names("fx"), res["fx"]), (names("fy"), res["fy"]),
+                                 (names("fz"), fz), (names("mu_x"), mu_x), (names("mu_y"), mu_y)]
+    if not np.all(np.isnan(res["sigma_fx"])):
+        groups.append((names("sigma_fx"), res["sigma_fx"]))
+    groups += [(names("sigma_fy"), res["sigma_fy"]), (["roll"], res["roll"]),
+               (["pitch"], res["pitch"])]
+    return groups
+
+
+def columns_from_groups(groups: list[ColumnGroup]) -> dict[str, np.ndarray]:
+    """Flatten column groups into a name → (n,) mapping (views, no copies)."""
+    cols: dict[str, np.ndarray] = {}
+    for group_names, values in groups:
+        if values.ndim == 1:
+            cols[group_names[0]] = values
+        else:
+            for i, name in enumerate(group_names):
+                cols[name] = values[:, i]
     return cols
+
+
+def frame_from_groups(groups: list[ColumnGroup], n: int) -> pd.DataFrame:
+    """One float64 DataFrame block from column groups, filled as its transpose (pandas stores
+    a block as (columns, samples)): each group is one strided copy, nothing is copied twice."""
+    width = sum(len(g) for g, _ in groups)
+    block = np.empty((width, n))
+    j = 0
+    for group_names, values in groups:
+        k = len(group_names)
+        block[j:j + k] = values.T if values.ndim == 2 else values
+        j += k
+    return pd.DataFrame(block.T, columns=[name for g, _ in groups for name in g], copy=False)
+
+
+def force_columns(t: np.ndarray, res: Mapping[str, np.ndarray]) -> dict[str, np.ndarray]:
+    """Spec columns of the force stage (``t`` first), see :func:`force_groups`."""
+    return {"t": t, **columns_from_groups(force_groups(res))}
 
 
 class ForceEstimator:
@@ -312,7 +346,7 @@ class ForceEstimator:
         """Estimate forces over a whole log (state reset first). Returns the estimated channels."""
         self.reset()
         u = inputs_from_log(log, self.vehicle)
-        return pd.DataFrame(force_columns(u.t, self.advance(u)))
+        return frame_from_groups([(["t"], u.t), *force_groups(self.advance(u))], u.t.shape[0])
 
     def step(self, sample: Mapping[str, float]) -> dict[str, float]:
         """Advance by one sample (a mapping with the log's column names); return that row.

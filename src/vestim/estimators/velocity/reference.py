@@ -100,42 +100,33 @@ class ReferenceParams:
 
 
 @njit(**_JIT)
-def _scalar_update(x: np.ndarray, P: np.ndarray, h: np.ndarray, z: float, r: float,
-                   gate: float, ph: np.ndarray) -> float:
-    """Kalman update with a scalar measurement z = h·x + v, var(v) = r; returns the innovation.
+def _block_update(x: np.ndarray, P: np.ndarray, i: int, j: int, z: float, r: float,
+                  gate: float) -> float:
+    """Kalman update of state i by a direct measurement z = x_i + v, var(v) = r; returns the
+    innovation (NaN if rejected beyond ``gate`` innovation standard deviations).
 
-    P ← P − (P h)(P h)ᵀ/s, symmetrised (for the optimal gain this equals the Joseph
-    form); ``ph`` is scratch of length n. Measurements beyond ``gate`` innovation
-    standard deviations are rejected (NaN returned, state untouched).
+    P is block diagonal ([v_x, b_x] and [v_y, b_y], see :func:`reference_kernel`), so the
+    update touches the block (i, j) only: K = P[:, i]/s, P ← P − K P[i, :], written out for
+    the 2×2 block (for the optimal gain this equals the Joseph form).
     """
-    n = x.shape[0]
-    for i in range(n):
-        acc = 0.0
-        for j in range(n):
-            acc += P[i, j] * h[j]
-        ph[i] = acc
-    s = r
-    zhat = 0.0
-    for i in range(n):
-        s += h[i] * ph[i]
-        zhat += h[i] * x[i]
-    innov = z - zhat
+    s = P[i, i] + r
+    innov = z - x[i]
     if innov * innov > gate * gate * s:
         return np.nan
-    for i in range(n):
-        x[i] += ph[i] / s * innov
-    for i in range(n):
-        for j in range(i, n):
-            v = P[i, j] - ph[i] * ph[j] / s
-            P[i, j] = v
-            P[j, i] = v
+    pii, pji, pjj = P[i, i], P[j, i], P[j, j]
+    x[i] += pii / s * innov
+    x[j] += pji / s * innov
+    P[i, i] = pii - pii * pii / s
+    P[j, j] = pjj - pji * pji / s
+    off = pji - pii * pji / s
+    P[i, j] = off
+    P[j, i] = off
     return innov
 
 
 @njit(**_JIT)
-def _lateral_update(x: np.ndarray, P: np.ndarray, h: np.ndarray, z: float, alpha: float,
-                    r_white: float, sig_col: float, inflate: float, s_side: float, gate: float,
-                    ph: np.ndarray) -> float:
+def _lateral_update(x: np.ndarray, P: np.ndarray, z: float, alpha: float, r_white: float,
+                    sig_col: float, inflate: float, s_side: float, gate: float) -> float:
     """Update of v_y by an axle's linear-tire pseudo-measurement z (m/s).
 
     Its error has a white part (variance ``r_white``: the lateral-force noise) and a part
@@ -152,9 +143,7 @@ def _lateral_update(x: np.ndarray, P: np.ndarray, h: np.ndarray, z: float, alpha
         return np.nan
     if (alpha < 0.0 and innov > 0.0) or (alpha > 0.0 and innov < 0.0):
         sig_col *= 1.0 + (innov / s_side) ** 2
-    h[:] = 0.0
-    h[VY] = 1.0
-    return _scalar_update(x, P, h, z, r_white + sig_col * sig_col * inflate, np.inf, ph)
+    return _block_update(x, P, VY, BY, z, r_white + sig_col * sig_col * inflate, np.inf)
 
 
 @njit(**_JIT)
@@ -184,8 +173,6 @@ def reference_kernel(t: np.ndarray, omega: np.ndarray, torque: np.ndarray, mu_x:
     q_by, by_max, k_rel, gate_vy, tau_vy, s_side, tau_w, acc_dead = prm[11:19]
     m = hist.shape[0]
     nx = x.shape[0]
-    h = np.zeros(nx)
-    ph = np.empty(nx)
     wheel_v = np.empty(4)
     for k in range(t.shape[0]):
         dt = t[k] - state[0]
@@ -236,7 +223,8 @@ def reference_kernel(t: np.ndarray, omega: np.ndarray, torque: np.ndarray, mu_x:
         sq_rw = np.sqrt(r_w)
         inflate_w = max(tau_w / dt, 1.0) if dt > 0 else 1.0
         for i in range(4):
-            c, s = np.cos(delta[k, i]), np.sin(delta[k, i])
+            d = delta[k, i]
+            c, s = (np.cos(d), np.sin(d)) if d != 0.0 else (1.0, 0.0)
             vxw = x[VX] - r_now * yw[i]
             vyw = x[VY] + r_now * xw[i]
             vyt = -vxw * s + vyw * c
@@ -254,10 +242,8 @@ def reference_kernel(t: np.ndarray, omega: np.ndarray, torque: np.ndarray, mu_x:
             if innov_pred * innov_pred > gate * gate * (P[VX, VX] + sig * sig):
                 res = np.nan
             else:
-                h[:] = 0.0
-                h[VX] = 1.0
-                res = _scalar_update(x, P, h, v_meas, r_w + slip_part * slip_part * inflate_w,
-                                     np.inf, ph)
+                res = _block_update(x, P, VX, BX, v_meas,
+                                    r_w + slip_part * slip_part * inflate_w, np.inf)
             out_trust[k, i] = np.inf if np.isnan(res) else sig
             wheel_v[i] = v_meas
             if not np.isnan(res):
@@ -276,10 +262,8 @@ def reference_kernel(t: np.ndarray, omega: np.ndarray, torque: np.ndarray, mu_x:
         # Extra CG-speed measurements (fusion with the corner-based estimators).
         for j in range(extra_v.shape[1]):
             if not np.isnan(extra_v[k, j]):
-                h[:] = 0.0
-                h[VX] = 1.0
                 # A corner observer's error persists like a wheel's slip error: same inflation.
-                _scalar_update(x, P, h, extra_v[k, j], extra_var[k, j] * inflate_w, gate, ph)
+                _block_update(x, P, VX, BX, extra_v[k, j], extra_var[k, j] * inflate_w, gate)
         # v_y from each axle's slip angle by the linear tire (front: v_y = v_x(α_f + δ) − l_f r,
         # rear: v_y = v_x α_r + l_r r). Its error grows with the slip angle (stiffness
         # uncertainty, k_rel) and with the sideslip acceleration |f_y − b_y − r v_x| (the
@@ -295,7 +279,7 @@ def reference_kernel(t: np.ndarray, omega: np.ndarray, torque: np.ndarray, mu_x:
                 continue
             z = (x[VX] * (alpha + d_f) - lf * r_now if a == 0 else x[VX] * alpha + lr * r_now)
             sig = k_rel * abs(x[VX] * alpha) + k_vy * beta_acc
-            _lateral_update(x, P, h, z, alpha, r_vy, sig, inflate, s_side, gate_vy, ph)
+            _lateral_update(x, P, z, alpha, r_vy, sig, inflate, s_side, gate_vy)
         # The biases are physically bounded (sensor bias plus a grade or bank of at most
         # ~5 %): a larger value means slip or a sliding car is being explained away as bias.
         x[BX] = min(max(x[BX], -bias_max), bias_max)
