@@ -1,10 +1,10 @@
 """Reference-speed Kalman filter: what an ABS/ESC team ships without a tire model.
 
-State x = [v_x, v_y, b_x, b_y]: CG velocity in the body frame (m/s) and the biases of
+State x = [v_x, v_y, b_x, b_y, b_r]: CG velocity in the body frame (m/s), the biases of
 the longitudinal and lateral kinematic accelerations (m/s²; accelerometer bias plus
-the road grade's g·sin γ or bank's g·sin β, which the IMU cannot tell apart, plus the
-yaw-gyro bias times v_x). Process (000 eq. (15) with the lateral equation):
-    v̇_x = f_x − b_x + r v_y,    v̇_y = f_y − b_y − r v_x,    ḃ = w_b,
+the road grade's g·sin γ or bank's g·sin β, which the IMU cannot tell apart) and the
+yaw-gyro bias (rad/s). Process (000 eq. (15) with the lateral equation):
+    v̇_x = f_x − b_x + (r − b_r) v_y,    v̇_y = f_y − b_y − (r − b_r) v_x,    ḃ = w_b,
 with f the IMU specific force rotated to the road plane by the body angles.
 
 Measurements, sequential scalar updates per sample:
@@ -40,7 +40,9 @@ from numba import njit
 
 _JIT: dict[str, Any] = {"cache": True, "error_model": "numpy"}
 
-VX, VY, BX, BY = 0, 1, 2, 3
+VX, VY, BX, BY, BR = 0, 1, 2, 3, 4
+LON = np.array([VX, BX])
+LAT = np.array([VY, BY, BR])
 
 
 @dataclass(frozen=True)
@@ -70,6 +72,13 @@ class ReferenceParams:
             its σ enters with the variance inflated by τ/T_s (0: white).
         acc_dead: dead zone of the |R ω̇ − a_x| evidence, m/s² (the wheel-speed noise makes
             ω̇ over the window noisy: σ ≈ 2 m/s² for the simulator's sensors at 200 Hz).
+        k_lat: slip-evidence gain on the wheel's lateral sliding speed |v_yt| (dimensionless:
+            m/s of σ per m/s): a tire sliding sideways is in combined slip and rolls slower.
+        q_gyro_bias: random-walk intensity of the yaw-gyro bias b_r, (rad/s)²/s.
+        gyro_bias_sd: prior one-sigma of b_r, rad/s (automotive MEMS: ~0.002 per run).
+        torque_dead: |torque| (N m) below which a wheel counts as neither driven nor braked
+            for the slip-signed inflation (torque-sensor noise at standstill, σ ≈ 6 N m,
+            would otherwise make the inflation one-sided at random and bias b_x).
         sigma_corner, sigma_corner_slip: one-sigma (m/s) given by the fused pipeline to a
             corner observer's CG speed outside and inside its high-slip mode.
         window: samples of the ω̇ difference.
@@ -94,33 +103,38 @@ class ReferenceParams:
     side_vy: float = 0.05
     tau_wheel: float = 1.0
     acc_dead: float = 3.0
+    k_lat: float = 1.0
+    q_gyro_bias: float = 1.0e-9
+    gyro_bias_sd: float = 0.003
+    torque_dead: float = 20.0
     window: int = 20
     sigma_corner: float = 5.0
     sigma_corner_slip: float = 1.0
 
 
 @njit(**_JIT)
-def _block_update(x: np.ndarray, P: np.ndarray, i: int, j: int, z: float, r: float,
+def _block_update(x: np.ndarray, P: np.ndarray, idx: np.ndarray, z: float, r: float,
                   gate: float) -> float:
-    """Kalman update of state i by a direct measurement z = x_i + v, var(v) = r; returns the
-    innovation (NaN if rejected beyond ``gate`` innovation standard deviations).
+    """Kalman update of state idx[0] by a direct measurement z = x[idx[0]] + v, var(v) = r;
+    returns the innovation (NaN if rejected beyond ``gate`` innovation standard deviations).
 
-    P is block diagonal ([v_x, b_x] and [v_y, b_y], see :func:`reference_kernel`), so the
-    update touches the block (i, j) only: K = P[:, i]/s, P ← P − K P[i, :], written out for
-    the 2×2 block (for the optimal gain this equals the Joseph form).
+    P is block diagonal (the blocks [v_x, b_x] and [v_y, b_y, b_r], see
+    :func:`reference_kernel`), so the update touches the block ``idx`` only:
+    K = P[idx, i]/s, P ← P − K P[i, idx] (for the optimal gain this equals the Joseph form).
     """
+    i = idx[0]
     s = P[i, i] + r
     innov = z - x[i]
     if innov * innov > gate * gate * s:
         return np.nan
-    pii, pji, pjj = P[i, i], P[j, i], P[j, j]
-    x[i] += pii / s * innov
-    x[j] += pji / s * innov
-    P[i, i] = pii - pii * pii / s
-    P[j, j] = pjj - pji * pji / s
-    off = pji - pii * pji / s
-    P[i, j] = off
-    P[j, i] = off
+    m = idx.shape[0]
+    col = np.empty(m)
+    for a in range(m):
+        col[a] = P[idx[a], i]
+    for a in range(m):
+        x[idx[a]] += col[a] / s * innov
+        for b in range(m):
+            P[idx[a], idx[b]] -= col[a] * col[b] / s
     return innov
 
 
@@ -143,7 +157,7 @@ def _lateral_update(x: np.ndarray, P: np.ndarray, z: float, alpha: float, r_whit
         return np.nan
     if (alpha < 0.0 and innov > 0.0) or (alpha > 0.0 and innov < 0.0):
         sig_col *= 1.0 + (innov / s_side) ** 2
-    return _block_update(x, P, VY, BY, z, r_white + sig_col * sig_col * inflate, np.inf)
+    return _block_update(x, P, LAT, z, r_white + sig_col * sig_col * inflate, np.inf)
 
 
 @njit(**_JIT)
@@ -155,22 +169,24 @@ def reference_kernel(t: np.ndarray, omega: np.ndarray, torque: np.ndarray, mu_x:
                      P: np.ndarray, hist: np.ndarray, state: np.ndarray, out_v: np.ndarray,
                      out_sig: np.ndarray, out_bias: np.ndarray,
                      out_trust: np.ndarray) -> None:
-    """Advance the reference filter over a chunk, in place on x (4,), P (4, 4), hist, state.
+    """Advance the reference filter over a chunk, in place on x (5,), P (5, 5), hist, state.
 
     ``prm`` = [q_vx, q_vy, q_bias, r_wheel, k_mu, k_acc, slip_sign, gate, r_vy, k_vy,
-    bias_max, q_bias_y, bias_y_max, k_rel, gate_vy, tau_vy, s_side, tau_wheel, acc_dead].
+    bias_max, q_bias_y, bias_y_max, k_rel, gate_vy, tau_vy, s_side, tau_wheel, acc_dead, k_lat,
+    q_gyro_bias, gyro_bias_sd, torque_dead].
     ``axle_slip`` (n, 2): front and rear axle slip angles from the lateral forces and the
     nominal cornering stiffness, rad (spec sign: atan(v_yt/v_xt)); NaN where unknown.
     ``hist`` (m, 5): last m samples of (t, ω_fl…ω_rr) for ω̇; ``state`` = [t_prev, started,
     f_x, f_y, r of the previous sample, samples with every wheel rejected, index of the
     oldest row of ``hist`` (a ring buffer)]. ``extra_v``/
     ``extra_var`` (n, m2): extra CG-speed measurements and variances, NaN where absent.
-    Outputs: out_v (n, 2) [v_x, v_y], out_sig (n, 2), out_bias (n, 2) [b_x, b_y], out_trust
+    Outputs: out_v (n, 2) [v_x, v_y], out_sig (n, 2), out_bias (n, 3) [b_x, b_y, b_r], out_trust
     (n, 4) the standard deviation used per wheel (inf where rejected).
     """
     q_vx, q_vy, q_b, r_w, k_mu, k_acc, s_sign, gate, r_vy, k_vy, bias_max = (
         prm[0], prm[1], prm[2], prm[3], prm[4], prm[5], prm[6], prm[7], prm[8], prm[9], prm[10])
-    q_by, by_max, k_rel, gate_vy, tau_vy, s_side, tau_w, acc_dead = prm[11:19]
+    q_by, by_max, k_rel, gate_vy, tau_vy, s_side, tau_w, acc_dead, k_lat = prm[11:20]
+    q_br, gyro_sd, torque_dead = prm[20], prm[21], prm[22]
     m = hist.shape[0]
     nx = x.shape[0]
     wheel_v = np.empty(4)
@@ -187,6 +203,7 @@ def reference_kernel(t: np.ndarray, omega: np.ndarray, torque: np.ndarray, mu_x:
             P[VY, VY] = 0.25
             P[BX, BX] = 0.25
             P[BY, BY] = 0.05**2
+            P[BR, BR] = gyro_sd * gyro_sd
             state[1] = 1.0
             for j in range(m):
                 hist[j, 0] = t[k]
@@ -194,30 +211,44 @@ def reference_kernel(t: np.ndarray, omega: np.ndarray, torque: np.ndarray, mu_x:
                     hist[j, 1 + i] = omega[k, i]
             state[6] = 0.0
         else:
-            fxp, fyp, rp = state[2], state[3], state[4]
+            fxp, fyp = state[2], state[3]
+            rp = state[4] - x[BR]
             vx, vy = x[VX], x[VY]
             # Prediction (000 eq. (15) with the lateral equation and bias states):
-            # v̇x = f_x − b_x + r v_y,  v̇y = f_y − b_y − r v_x  (inputs of the previous sample).
+            # v̇x = f_x − b_x + (r − b_r) v_y,  v̇y = f_y − b_y − (r − b_r) v_x  (inputs of the
+            # previous sample). The gyro bias b_r enters v_y scaled by v_x, so unlike the
+            # accelerometer bias b_y it changes with speed (0.002 rad/s × 25 m/s of speed
+            # change = 0.05 m/s² of v̇_y error) and is observable as the speed changes.
             x[VX] = vx + dt * (fxp - x[BX] + rp * vy)
             x[VY] = vy + dt * (fyp - x[BY] - rp * vx)
-            # The r-coupling stays out of the covariance: with a gyro bias of 0.002 rad/s
-            # and r → 0 on a straight road it would make the lateral pseudo-measurements
-            # a spurious v_x measurement (v_x ≈ (f_y − b_y)/r); [v_x, b_x] and [v_y, b_y]
+            # The r-coupling of v_x and v_y stays out of the covariance: with a gyro bias and
+            # r → 0 on a straight road it would make the lateral pseudo-measurements a
+            # spurious v_x measurement (v_x ≈ (f_y − b_y)/r); [v_x, b_x] and [v_y, b_y, b_r]
             # are therefore two decoupled blocks (P stays block diagonal) whose means are
-            # coupled through r. Each block: F = [[1, −dt], [0, 1]], P ← F P Fᵀ.
-            for iv, ib in ((VX, BX), (VY, BY)):
-                pvv = P[iv, iv] - 2.0 * dt * P[iv, ib] + dt * dt * P[ib, ib]
-                pvb = P[iv, ib] - dt * P[ib, ib]
-                P[iv, iv] = pvv
-                P[iv, ib] = pvb
-                P[ib, iv] = pvb
+            # coupled through r. Longitudinal block: F = [[1, −dt], [0, 1]].
+            pvv = P[VX, VX] - 2.0 * dt * P[VX, BX] + dt * dt * P[BX, BX]
+            pvb = P[VX, BX] - dt * P[BX, BX]
+            P[VX, VX] = pvv
+            P[VX, BX] = pvb
+            P[BX, VX] = pvb
+            # Lateral block: v_y ← v_y − dt b_y + dt v_x b_r, i.e. row g = [1, −dt, dt v_x].
+            g1, g2 = -dt, dt * vx
+            p0 = np.empty(3)
+            for a in range(3):
+                p0[a] = P[LAT[a], VY] + g1 * P[LAT[a], BY] + g2 * P[LAT[a], BR]
+            pyy = p0[0] + g1 * p0[1] + g2 * p0[2]
+            P[VY, VY] = pyy
+            for a in range(1, 3):
+                P[LAT[a], VY] = p0[a]
+                P[VY, LAT[a]] = p0[a]
             P[VX, VX] += q_vx * dt
             P[VY, VY] += q_vy * dt
             P[BX, BX] += q_b * dt
             P[BY, BY] += q_by * dt
+            P[BR, BR] += q_br * dt
         oldest = int(state[6])  # ring buffer: the oldest row is overwritten next
         span = t[k] - hist[oldest, 0]
-        r_now = yaw_rate[k]
+        r_now = yaw_rate[k] - x[BR]
         # Wheel speeds mapped to the CG, trusted by their evidence of slip.
         accepted = 0
         sq_rw = np.sqrt(r_w)
@@ -231,9 +262,11 @@ def reference_kernel(t: np.ndarray, omega: np.ndarray, torque: np.ndarray, mu_x:
             v_meas = radius * omega[k, i] * c - vyt * s + r_now * yw[i]
             omega_dot = (omega[k, i] - hist[oldest, 1 + i]) / span if span > 0 else 0.0
             acc_err = max(abs(radius * omega_dot - f_x[k] + x[BX]) - acc_dead, 0.0)
-            sig = sq_rw + k_mu * abs(mu_x[k, i]) * abs(x[VX]) + k_acc * acc_err
+            sig = (sq_rw + k_mu * abs(mu_x[k, i]) * abs(x[VX]) + k_acc * acc_err
+                   + k_lat * abs(vyt))
             innov_pred = v_meas - x[VX]
-            if (torque[k, i] > 0 and innov_pred > 0) or (torque[k, i] < 0 and innov_pred < 0):
+            tq = torque[k, i]
+            if (tq > torque_dead and innov_pred > 0) or (tq < -torque_dead and innov_pred < 0):
                 sig *= 1.0 + (innov_pred / s_sign) ** 2
             # The slip part of σ is a persistent error (a slipping wheel stays slipping), so
             # it enters with the correlation-time inflation, like the lateral model error;
@@ -242,7 +275,7 @@ def reference_kernel(t: np.ndarray, omega: np.ndarray, torque: np.ndarray, mu_x:
             if innov_pred * innov_pred > gate * gate * (P[VX, VX] + sig * sig):
                 res = np.nan
             else:
-                res = _block_update(x, P, VX, BX, v_meas,
+                res = _block_update(x, P, LON, v_meas,
                                     r_w + slip_part * slip_part * inflate_w, np.inf)
             out_trust[k, i] = np.inf if np.isnan(res) else sig
             wheel_v[i] = v_meas
@@ -263,7 +296,7 @@ def reference_kernel(t: np.ndarray, omega: np.ndarray, torque: np.ndarray, mu_x:
         for j in range(extra_v.shape[1]):
             if not np.isnan(extra_v[k, j]):
                 # A corner observer's error persists like a wheel's slip error: same inflation.
-                _block_update(x, P, VX, BX, extra_v[k, j], extra_var[k, j] * inflate_w, gate)
+                _block_update(x, P, LON, extra_v[k, j], extra_var[k, j] * inflate_w, gate)
         # v_y from each axle's slip angle by the linear tire (front: v_y = v_x(α_f + δ) − l_f r,
         # rear: v_y = v_x α_r + l_r r). Its error grows with the slip angle (stiffness
         # uncertainty, k_rel) and with the sideslip acceleration |f_y − b_y − r v_x| (the
@@ -292,13 +325,14 @@ def reference_kernel(t: np.ndarray, omega: np.ndarray, torque: np.ndarray, mu_x:
         state[0] = t[k]
         state[2] = f_x[k]
         state[3] = f_y[k]
-        state[4] = r_now
+        state[4] = yaw_rate[k]
         out_v[k, 0] = x[VX]
         out_v[k, 1] = x[VY]
         out_sig[k, 0] = np.sqrt(max(P[VX, VX], 0.0))
         out_sig[k, 1] = np.sqrt(max(P[VY, VY], 0.0))
         out_bias[k, 0] = x[BX]
         out_bias[k, 1] = x[BY]
+        out_bias[k, 2] = x[BR]
 
 
 class ReferenceFilter:
@@ -323,12 +357,13 @@ class ReferenceFilter:
         self._prm = np.array([p.q_vx, p.q_vy, p.q_bias, p.r_wheel, p.k_mu, p.k_acc, p.slip_sign,
                               p.gate, p.r_vy, p.k_vy, p.bias_max, p.q_bias_y, p.bias_y_max,
                               p.k_rel, p.gate_vy, p.tau_vy, p.side_vy, p.tau_wheel,
-                              p.acc_dead])
+                              p.acc_dead, p.k_lat, p.q_gyro_bias, p.gyro_bias_sd,
+                              p.torque_dead])
         self.reset()
 
     def reset(self) -> None:
-        self._x = np.zeros(4)
-        self._P = np.zeros((4, 4))
+        self._x = np.zeros(5)
+        self._P = np.zeros((5, 5))
         self._hist = np.zeros((self.params.window, 5))
         self._state = np.zeros(7)
 
@@ -337,8 +372,8 @@ class ReferenceFilter:
                 delta: np.ndarray,
                 extra_v: np.ndarray | None = None,
                 extra_var: np.ndarray | None = None) -> dict[str, np.ndarray]:
-        """Process a chunk; returns v (n, 2) [v_x, v_y] m/s, sigma (n, 2), bias (n, 2) [b_x, b_y]
-        m/s², trust (n, 4).
+        """Process a chunk; returns v (n, 2) [v_x, v_y] m/s, sigma (n, 2), bias (n, 3) [b_x, b_y]
+        m/s² and b_r rad/s, trust (n, 4).
 
         ``axle_slip`` (n, 2) holds the front and rear axle slip angles −F_y/C_y in rad (NaN
         where unknown); ``extra_v``/``extra_var`` (n, m) extra CG-speed measurements, m/s
@@ -350,7 +385,7 @@ class ReferenceFilter:
             extra_var = np.full((n, 0), np.nan)
         v = np.empty((n, 2))
         sig = np.empty((n, 2))
-        bias = np.empty((n, 2))
+        bias = np.empty((n, 3))
         trust = np.empty((n, 4))
         reference_kernel(t, omega, torque, mu_x, np.ascontiguousarray(axle_slip), f_x, f_y,
                          yaw_rate, delta,
