@@ -135,3 +135,13 @@ def test_opinion_fusion_writes_confidences_and_downweights_a_spinning_corner():
 def test_unknown_fusion_is_named():
     with pytest.raises(PipelineConfigError, match="fusion method 'mean'"):
         PipelineConfig(fusion="mean")
+
+
+@pytest.mark.parametrize("velocity", ["fused", "kf"])
+def test_chunked_run_equals_one_chunk(log, velocity):
+    """run() processes the log in chunks; the chunk size must not change the result."""
+    part = strip(log).iloc[:1000]
+    cfg = PipelineConfig(velocity=velocity, fusion="opinion")
+    whole = Pipeline(SUV, cfg).run(part, chunk=10_000)
+    chunked = Pipeline(SUV, cfg).run(part, chunk=37)
+    pd.testing.assert_frame_equal(whole, chunked, rtol=1e-12, atol=1e-9)

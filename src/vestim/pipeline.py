@@ -20,7 +20,7 @@ from __future__ import annotations
 
 import tomllib
 from collections.abc import Mapping
-from dataclasses import dataclass, field, fields
+from dataclasses import dataclass, field, fields, replace
 from pathlib import Path
 from typing import Any
 
@@ -32,9 +32,9 @@ from vestim.errors import VestimError
 from vestim.estimators.force import ForceConfig, ForceEstimator
 from vestim.estimators.force.estimator import (
     ColumnGroup,
+    Inputs,
     columns_from_groups,
     force_groups,
-    frame_from_groups,
     inputs_from_log,
 )
 from vestim.estimators.force.longitudinal import METHODS as FORCE_METHODS
@@ -49,6 +49,17 @@ from vestim.models import kinematics as kin
 
 VELOCITY_METHODS: tuple[str, ...] = ("fused", "reference", "kinematic", "kf", "ukf", "lpv")
 CORNER_METHODS = {"kf": "lugre_kf", "ukf": "lugre_ukf", "lpv": "lpv"}
+
+
+CHUNK = 65_536
+"""Samples per chunk of :meth:`Pipeline.run` (bounds the intermediate arrays to ~100 MB)."""
+
+
+def _slice_inputs(u: Inputs, start: int, stop: int) -> Inputs:
+    """Samples [start, stop) of the inputs, as contiguous arrays (flags kept)."""
+    arrays: dict[str, Any] = {f.name: np.ascontiguousarray(getattr(u, f.name)[start:stop])
+                              for f in fields(u) if isinstance(getattr(u, f.name), np.ndarray)}
+    return replace(u, **arrays)
 
 
 class PipelineConfigError(VestimError, ValueError):
@@ -306,11 +317,36 @@ class Pipeline:
             groups.append((names("confidence"), res["confidence"]))
         return groups
 
-    def run(self, log: pd.DataFrame) -> pd.DataFrame:
-        """Estimate over a whole log (state reset first); returns the estimated channels."""
+    def run(self, log: pd.DataFrame, chunk: int = CHUNK) -> pd.DataFrame:
+        """Estimate over a whole log (state reset first); returns the estimated channels.
+
+        The log is processed in chunks of ``chunk`` samples (the state carries over, so the
+        result does not depend on the chunking: :meth:`step` is the chunk of one), which
+        bounds the intermediate arrays; the output is one float64 block filled in place.
+        """
         self.reset()
         u = inputs_from_log(log, self.vehicle)
-        return frame_from_groups(self._groups(u.t, self._advance(u)), u.t.shape[0])
+        n = u.t.shape[0]
+        names: list[str] = []
+        block = np.empty((0, n))
+        for start in range(0, max(n, 1), chunk):
+            part = _slice_inputs(u, start, min(start + chunk, n))
+            groups = self._groups(part.t, self._advance(part))
+            if start == 0:
+                names = [name for g, _ in groups for name in g]
+                block = np.empty((len(names), n))
+                rows = {name: j for j, name in enumerate(names)}
+            filled = np.zeros(len(names), dtype=bool)
+            stop = start + part.t.shape[0]
+            for group_names, values in groups:
+                j = rows.get(group_names[0])
+                if j is None:  # a channel the first chunk did not have (method-dependent)
+                    continue
+                block[j:j + len(group_names), start:stop] = values.T if values.ndim == 2 else values
+                filled[j:j + len(group_names)] = True
+            block[~filled, start:stop] = np.nan
+        # pandas stores a float block as (columns, samples): the transpose is not copied.
+        return pd.DataFrame(block.T, columns=names, copy=False)
 
     def step(self, sample: Mapping[str, float]) -> dict[str, float]:
         """Advance by one sample (mapping of the log's column names); return that row."""

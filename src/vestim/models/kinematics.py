@@ -30,11 +30,29 @@ def corner_positions(vehicle: Vehicle) -> tuple[np.ndarray, np.ndarray]:
     return xw, yw
 
 
+@njit(cache=True, error_model="numpy")
+def _transport(a: np.ndarray, b: np.ndarray, c: np.ndarray, w: np.ndarray, s: np.ndarray,
+               sign: float) -> tuple[np.ndarray, np.ndarray]:
+    """out_x[k, i] = a[k] − sign·c[k] y_i, out_y[k, i] = b[k] + sign·c[k] x_i for (n,) a, b, c
+    and (4,) positions (w = x_i, s = y_i); one pass, no temporaries."""
+    n = a.shape[0]
+    out_x = np.empty((n, 4))
+    out_y = np.empty((n, 4))
+    for k in range(n):
+        for i in range(4):
+            out_x[k, i] = a[k] - sign * c[k] * s[i]
+            out_y[k, i] = b[k] + sign * c[k] * w[i]
+    return out_x, out_y
+
+
+def _flat(x: np.ndarray) -> np.ndarray:
+    return np.ascontiguousarray(x, dtype=float).reshape(-1)
+
+
 def cg_to_corners(vx: np.ndarray, vy: np.ndarray, yaw_rate: np.ndarray, xw: np.ndarray,
                   yw: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Wheel-centre velocities (n, 4) in the body frame from the CG velocity (n,) and yaw rate."""
-    return (vx[:, None] - yaw_rate[:, None] * yw[None, :],
-            vy[:, None] + yaw_rate[:, None] * xw[None, :])
+    return _transport(_flat(vx), _flat(vy), _flat(yaw_rate), _flat(xw), _flat(yw), 1.0)
 
 
 def corners_to_cg(vx_i: np.ndarray, vy_i: np.ndarray, yaw_rate: np.ndarray, xw: np.ndarray,
@@ -43,13 +61,26 @@ def corners_to_cg(vx_i: np.ndarray, vy_i: np.ndarray, yaw_rate: np.ndarray, xw: 
     return (vx_i + yaw_rate[:, None] * yw[None, :], vy_i - yaw_rate[:, None] * xw[None, :])
 
 
+@njit(cache=True, error_model="numpy")
+def _corner_acc(ax: np.ndarray, ay: np.ndarray, r: np.ndarray, r_dot: np.ndarray,
+                xw: np.ndarray, yw: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    n = ax.shape[0]
+    out_x = np.empty((n, 4))
+    out_y = np.empty((n, 4))
+    for k in range(n):
+        r2 = r[k] * r[k]
+        for i in range(4):
+            out_x[k, i] = ax[k] - r_dot[k] * yw[i] - r2 * xw[i]
+            out_y[k, i] = ay[k] + r_dot[k] * xw[i] - r2 * yw[i]
+    return out_x, out_y
+
+
 def corner_accelerations(ax: np.ndarray, ay: np.ndarray, yaw_rate: np.ndarray,
                          yaw_acc: np.ndarray, xw: np.ndarray,
                          yw: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Acceleration (n, 4) of each wheel centre in the body frame, m/s², from the CG's (n,)."""
-    r2 = (yaw_rate**2)[:, None]
-    return (ax[:, None] - yaw_acc[:, None] * yw[None, :] - r2 * xw[None, :],
-            ay[:, None] + yaw_acc[:, None] * xw[None, :] - r2 * yw[None, :])
+    return _corner_acc(_flat(ax), _flat(ay), _flat(yaw_rate), _flat(yaw_acc), _flat(xw),
+                       _flat(yw))
 
 
 @njit(cache=True, error_model="numpy")
