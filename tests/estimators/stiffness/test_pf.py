@@ -17,8 +17,14 @@ from vestim.estimators.stiffness import (
     estimate_stiffness,
     prepare_inputs,
 )
+from vestim.estimators.stiffness.draws import fill_normals, seed_state
 from vestim.estimators.stiffness.model import SingleTrackParams, model_terms
 from vestim.estimators.stiffness.pf import (
+    C_B,
+    C_LAM,
+    C_MU,
+    C_PB,
+    C_X,
     L00,
     L01,
     L02,
@@ -31,6 +37,7 @@ from vestim.estimators.stiffness.pf import (
     PYY,
     alg1_kernel,
     bias_update,
+    pack_particles,
 )
 from vestim.filters.linalg import chol_logdet, cholesky
 from vestim.filters.niw import (
@@ -56,12 +63,92 @@ def _unpack(lam: np.ndarray) -> np.ndarray:
     return full
 
 
-def test_kernel_step_equals_the_generic_functions():
-    """One step of the fused kernel equals eq. (35), (36), (40)–(41), (19), (20), (9) composed from
-    :mod:`vestim.filters.niw` with the same random numbers (1e-10 relative: operation order).
+def _reference_alg1(y, u, active, bias_on, p, r_pk, q_pk, forget, model_error, x, mu, lam, b, pb,
+                    logw, gamma, nu, blocks):
+    """Algorithm 1 without resampling, composed from :mod:`vestim.filters.niw` and dense numpy.
 
-    Bias filter frozen (settled = False), no model error and N_thr = 0 so that only the
-    w draws consume random numbers: per particle three normals and one Wilson–Hilferty normal.
+    ``blocks[k]`` is the (N, 7) block of normals the kernel draws at the start of step k
+    (and ``blocks[K]`` at the end): columns 0–3 the Student-t draw of step k, columns 4–6
+    the model-error noise of step k − 1 on [v_y, ψ̇, v_x]. ``lam`` is a list of dense 3 × 3 Λ.
+    """
+    n = x.shape[0]
+    r_full = np.diag(r_pk[[PXX, PYY, PRR]])
+    r_full[0, 1] = r_full[1, 0] = r_pk[PXY]
+    out = {k: [] for k in ("xh", "xv", "wh", "wc", "bh", "ess")}
+    pbf = [np.array([[v[PXX], v[PXY], 0], [v[PXY], v[PYY], 0], [0, 0, v[PRR]]]) for v in pb]
+    x, mu, b, logw = x.copy(), mu.copy(), b.copy(), logw.copy()
+    for k in range(y.shape[0]):
+        dof = nu - 2.0
+        xn, ds, hs = np.empty_like(x), [], []
+        for i in range(n):
+            f, g, h, d = np.empty(3), np.empty((3, 3)), np.empty(3), np.empty((3, 3))
+            model_terms(x[i], u[k], p, f, g, h, d)
+            lam_e, low_e = np.empty((3, 3)), np.empty((3, 3))
+            moment_matched_scale(d, lam[i], gamma, dof, r_full + pbf[i], lam_e)    # (35)
+            cholesky(lam_e, low_e)
+            z = y[k] - h - b[i] - d @ mu[i]
+            mu_c, scale_c, low_c = np.empty(3), np.empty((3, 3)), np.empty((3, 3))
+            dof_c, maha = t_condition(mu[i], (1 + gamma) / dof * lam[i], d, low_e, z, dof, mu_c,
+                                      scale_c, np.empty((3, 3)), np.empty(3))         # (40)–(41)
+            logw[i] += mvt_log_kernel(maha, chol_logdet(low_e), dof, 3)             # (36)
+            cholesky(scale_c, low_c)
+            a = 2.0 / (9.0 * dof_c)
+            chi2 = dof_c * max(1.0 - a + math.sqrt(a) * blocks[k][i, 3], 1e-3) ** 3
+            w = np.empty(3)
+            mvt_draw(mu_c, low_c, dof_c, blocks[k][i, :3], chi2, w)                 # (39)
+            if active[k]:
+                niw_update(gamma, nu, mu[i], lam[i], w)                              # (19)
+            xn[i] = f + g @ w                                                        # (9)
+            ds.append(d)
+            hs.append(h)
+        if active[k]:
+            gamma, nu = gamma / (1 + gamma), nu + 1
+        q = np.exp(logw - logw.max())
+        out["ess"].append(q.sum() ** 2 / (q**2).sum())
+        q /= q.sum()
+        logw = np.log(q)
+        xh = q @ x
+        px = (x - xh).T @ (q[:, None] * (x - xh))
+        wh = q @ mu
+        out["xh"].append(xh)
+        out["xv"].append(np.diag(px))
+        out["wh"].append(wh)
+        out["wc"].append(sum(qi * (li / (nu - 4) + np.outer(m - wh, m - wh))
+                             for qi, li, m in zip(q, lam, mu, strict=True)))        # (27)
+        hx = np.zeros((3, 3))
+        for j, step in enumerate((1e-3, 1e-4, 1e-5)):
+            hp, hm = np.empty(3), np.empty(3)
+            for sign, dest in ((1, hp), (-1, hm)):
+                xs = xh.copy()
+                xs[j] += sign * step
+                model_terms(xs, u[k], p, np.empty(3), np.empty((3, 3)), dest, np.empty((3, 3)))
+            hx[:, j] = (hp - hm) / (2 * step)
+        x_unc = hx @ px @ hx.T
+        x_unc[:2, 2] = x_unc[2, :2] = 0.0     # the kernel keeps P block-diagonal
+        for i in range(n):
+            if bias_on[k]:                                                           # (30)
+                d = ds[i]
+                s_cov = pbf[i] + r_full + d @ (lam[i] / (nu - 4)) @ d.T + x_unc
+                gain = pbf[i] @ np.linalg.inv(s_cov)
+                b[i] = b[i] + gain @ (y[k] - hs[i] - d @ mu[i] - b[i])
+                pbf[i] = pbf[i] - gain @ s_cov @ gain.T + np.diag(q_pk[[PXX, PYY, PRR]])  # (29)
+            if active[k]:
+                niw_predict(gamma, nu, lam[i], forget)                               # (20)
+            x[i] = xn[i] + u[k, 3] * model_error * blocks[k + 1][i, [6, 4, 5]]
+        out["bh"].append(q @ b)
+        if active[k]:
+            gamma, nu = gamma / forget, forget * nu
+    return x, mu, lam, b, pbf, logw, gamma, nu, {k: np.array(v) for k, v in out.items()}
+
+
+def test_kernel_equals_the_generic_functions():
+    """Three steps of the fused kernel equal Algorithm 1 composed from :mod:`vestim.filters.niw`
+    (eq. (35), (36), (39)–(41), (19), (20), (9)), a dense bias Kalman filter (eq. (29)–(30))
+    and dense moments (eq. (27), (42)), with the same normals (1e-8 relative: the kernel
+    reorders operations and contracts multiply-adds; three steps amplify the round-off).
+
+    Steps: inactive (statistics frozen, bias filter frozen), then two active steps with the
+    bias filter and model-error noise on; N_thr = 0, so nothing is resampled.
     """
     rng0 = np.random.default_rng(42)
     n = 6
@@ -74,68 +161,109 @@ def test_kernel_step_equals_the_generic_functions():
     lam[:, L01] = 16 * 0.3 * 30e3 * 20e3
     b = rng0.normal(0, 0.05, (n, 3))
     pb = np.tile([0.05**2, 1e-4, 0.05**2, 0.002**2], (n, 1))
-    logw = np.full(n, -math.log(n))
+    logw = rng0.normal(0, 0.3, n) - math.log(n)
     gamma, nu = 0.1, 20.0
-    y = np.array([[0.8, 2.1, 0.09]])
-    u = np.array([[0.015, 68.0, 67.0, 0.005]])
+    y = np.array([[0.8, 2.1, 0.09], [0.7, 2.3, 0.1], [0.75, 2.2, 0.095]])
+    u = np.array([[0.015, 68.0, 67.0, 0.005], [0.016, 68.1, 67.0, 0.005], [0.016, 68.1, 67.1, 0.005]])
+    active = np.array([False, True, True])
+    bias_on = np.array([False, True, True])
     r_pk = np.array([0.05**2, 0.0, 0.05**2, 0.003**2])
-    lo = np.full(3, -1e9)
-    hi = np.full(3, 1e9)
+    q_pk = np.array([1e-6, 0.0, 1e-6, 1e-9])
+    lo, hi = np.full(3, -1e9), np.full(3, 1e9)
     forget = 0.99
-    # --- reference, generic functions, same generator stream
-    rng = np.random.default_rng(7)
-    ref_x, ref_mu, ref_lam, ref_w, ref_logw = x.copy(), mu.copy(), [], np.empty((n, 3)), logw.copy()
-    dof = nu - 2.0
-    for i in range(n):
-        f, g, h, d = np.empty(3), np.empty((3, 3)), np.empty(3), np.empty((3, 3))
-        model_terms(x[i], u[0], p, f, g, h, d)
-        lam_i = _unpack(lam[i])
-        noise = np.diag(r_pk[[PXX, PYY, PRR]]) + np.array(
-            [[pb[i, PXX], pb[i, PXY], 0], [pb[i, PXY], pb[i, PYY], 0], [0, 0, pb[i, PRR]]])
-        lam_e = np.empty((3, 3))
-        moment_matched_scale(d, lam_i, gamma, dof, noise, lam_e)
-        low_e = np.empty((3, 3))
-        cholesky(lam_e, low_e)
-        z = y[0] - h - b[i] - d @ mu[i]
-        mu_c, scale_c = np.empty(3), np.empty((3, 3))
-        dof_c, maha = t_condition(mu[i], (1 + gamma) / dof * lam_i, d, low_e, z, dof, mu_c, scale_c,
-                                  np.empty((3, 3)), np.empty(3))
-        ref_logw[i] += mvt_log_kernel(maha, chol_logdet(low_e), dof, 3)
-        low_c = np.empty((3, 3))
-        cholesky(scale_c, low_c)
-        normals = np.array([rng.standard_normal() for _ in range(3)])
-        a = 2.0 / (9.0 * dof_c)
-        chi2 = dof_c * max(1.0 - a + math.sqrt(a) * rng.standard_normal(), 1e-3) ** 3
-        w = np.empty(3)
-        mvt_draw(mu_c, low_c, dof_c, normals, chi2, w)
-        ref_w[i] = w
-        m_i = mu[i].copy()
-        niw_update(gamma, nu, m_i, lam_i, w)
-        niw_predict(gamma, nu, lam_i, forget)
-        ref_mu[i] = m_i
-        ref_lam.append(lam_i)
-        ref_x[i] = f + g @ w
-    ref_logw -= np.log(np.exp(ref_logw).sum())
-    # --- kernel
-    out = {k: np.empty(s) for k, s in (("xh", (1, 3)), ("xv", (1, 3)), ("wh", (1, 3)),
-                                        ("wc", (1, 3, 3)), ("bh", (1, 3)), ("ess", (1,)))}
+    model_error = np.array([0.2, 0.3, 0.1])
+    state = seed_state(np.random.default_rng(7))
+    stream = state.copy()
+    blocks = []
+    for _ in range(len(y) + 1):
+        blk = np.empty((n, 7))
+        fill_normals(stream, blk)
+        blocks.append(blk)
+    ref = _reference_alg1(y, u, active, bias_on, p, r_pk, q_pk, forget, model_error, x, mu,
+                          [_unpack(v) for v in lam], b, pb, logw, gamma, nu, blocks)
+    k = len(y)
+    out = {name: np.empty(shape) for name, shape in (("xh", (k, 3)), ("xv", (k, 3)), ("wh", (k, 3)),
+                                                     ("wc", (k, 3, 3)), ("bh", (k, 3)), ("ess", (k,)))}
+    part = pack_particles(x, mu, lam, b, pb)
     shared = np.array([gamma, nu])
-    xk, muk, lamk, bk, pbk, wk, logwk = x.copy(), mu.copy(), lam.copy(), b.copy(), pb.copy(), \
-        np.empty((n, 3)), logw.copy()
-    alg1_kernel(y, u, np.array([True]), np.array([False]), p, r_pk, np.zeros(4), lo, hi, forget, 0.0,
-                np.zeros(3), xk, muk, lamk, bk, pbk, wk, logwk, shared, np.random.default_rng(7),
-                out["xh"], out["xv"], out["wh"], out["wc"], out["bh"], out["ess"])
-    np.testing.assert_allclose(wk, ref_w, rtol=1e-10)
-    np.testing.assert_allclose(muk, ref_mu, rtol=1e-10)
-    np.testing.assert_allclose(np.array([_unpack(r) for r in lamk]), np.array(ref_lam), rtol=1e-10)
-    np.testing.assert_allclose(xk, ref_x, rtol=1e-12)
-    np.testing.assert_allclose(logwk, ref_logw, rtol=1e-10, atol=1e-12)
-    np.testing.assert_array_equal(bk, b)  # frozen
-    assert shared[1] == pytest.approx(forget * (nu + 1))
-    q = np.exp(logwk)
-    assert q.sum() == pytest.approx(1.0)
-    assert out["ess"][0] == pytest.approx(1.0 / (q**2).sum())
-    np.testing.assert_allclose(out["wh"][0], q @ muk, rtol=1e-12)
+    logwk = logw.copy()
+    alg1_kernel(y, u, active, bias_on, p, r_pk, q_pk, lo, hi, forget, 0.005, 0.0, model_error, part,
+                logwk, shared, state, out["xh"], out["xv"], out["wh"], out["wc"], out["bh"], out["ess"])
+    x_r, mu_r, lam_r, b_r, pb_r, logw_r, gamma_r, nu_r, est = ref
+    np.testing.assert_allclose(part[:, C_X:C_X + 3], x_r, rtol=1e-8)
+    np.testing.assert_allclose(part[:, C_MU:C_MU + 3], mu_r, rtol=1e-8)
+    np.testing.assert_allclose(np.array([_unpack(v) for v in part[:, C_LAM:C_LAM + 6]]),
+                               np.array(lam_r), rtol=1e-8)
+    np.testing.assert_allclose(part[:, C_B:C_B + 3], b_r, rtol=1e-8, atol=1e-12)
+    np.testing.assert_allclose(part[:, C_PB:C_PB + 4],
+                               [[v[0, 0], v[0, 1], v[1, 1], v[2, 2]] for v in pb_r], rtol=1e-8)
+    np.testing.assert_allclose(logwk, logw_r, rtol=1e-8, atol=1e-10)
+    np.testing.assert_allclose(shared, [gamma_r, nu_r], rtol=1e-12)
+    for name in out:
+        np.testing.assert_allclose(out[name], est[name], rtol=1e-8, atol=1e-12, err_msg=name)
+    np.testing.assert_array_equal(stream, state)   # the kernel drew exactly K + 1 blocks
+
+
+def test_resampling_copies_whole_particles():
+    """Line 9 of Algorithm 1: with N_thr = N every step resamples, and each particle is a copy
+    of a particle of the run without resampling (same normals: the resampling uniform is
+    drawn after the step's block), statistics and bias filter included, with systematic
+    resampling's ancestor counts ⌊N q_i⌋ or ⌈N q_i⌉. Deterministic finish (no model error)
+    so that the rows can be compared exactly; one step = one buffer swap, so this also
+    checks that the caller's array receives the result."""
+    rng0 = np.random.default_rng(3)
+    n = 40
+    params = SingleTrackParams.from_vehicle(SUV_FWD, (220e3, 215e3, 140e3, 135e3))
+    x = np.column_stack([22 + rng0.normal(0, 0.3, n), rng0.normal(0, 0.3, n), rng0.normal(0, 0.02, n)])
+    mu = rng0.normal(0, 1, (n, 3)) * [30e3, 20e3, 20e3]
+    lam = np.zeros((n, 6))
+    lam[:, L00], lam[:, L11], lam[:, L22] = 16 * 30e3**2, 16 * 20e3**2, 16 * 20e3**2
+    pb = np.tile([0.05**2, 0.0, 0.05**2, 0.002**2], (n, 1))
+    args = (np.array([[0.8, 2.1, 0.09]]), np.array([[0.015, 68.0, 67.0, 0.005]]), np.array([True]),
+            np.array([True]), params.pack(), np.array([0.05**2, 0.0, 0.05**2, 0.003**2]), np.zeros(4),
+            np.full(3, -1e9), np.full(3, 1e9), 0.99, 0.005)
+    results = []
+    for n_thr in (0.0, float(n)):
+        part = pack_particles(x, mu, lam, np.zeros((n, 3)), pb)
+        logw = np.full(n, -math.log(n))
+        outs = [np.empty((1, 3)), np.empty((1, 3)), np.empty((1, 3)), np.empty((1, 3, 3)),
+                np.empty((1, 3)), np.empty(1)]
+        n_res = alg1_kernel(*args, n_thr, np.zeros(3), part, logw, np.array([0.1, 20.0]),
+                            seed_state(np.random.default_rng(11)), *outs)
+        results.append((part, logw, n_res, outs))
+    (plain, logw_plain, n0, _), (resampled, logw_res, n1, _) = results
+    assert (n0, n1) == (0, 1)
+    np.testing.assert_allclose(logw_res, -math.log(n))
+    ancestors = [int(np.flatnonzero((plain == row).all(axis=1))[0]) for row in resampled]
+    counts = np.bincount(ancestors, minlength=n)
+    q = np.exp(logw_plain)
+    assert np.all((counts == np.floor(n * q)) | (counts == np.ceil(n * q)))
+
+
+def test_forgetting_per_period():
+    """Eq. (20) with λ per ``forgetting_period``: a step of T_s forgets by λ^(T_s/period), so two
+    steps of 5 ms at period 10 ms forget like one step at 002's per-step λ."""
+    n = 4
+    params = SingleTrackParams.from_vehicle(SUV_FWD, (220e3, 215e3, 140e3, 135e3))
+    x = np.tile([22.0, 0.1, 0.02], (n, 1))
+    lam = np.zeros((n, 6))
+    lam[:, L00], lam[:, L11], lam[:, L22] = 16 * 30e3**2, 16 * 20e3**2, 16 * 20e3**2
+    k = 2
+    y = np.tile([0.8, 2.1, 0.02], (k, 1))
+    u = np.tile([0.015, 68.0, 67.0, 0.005], (k, 1))
+    shared = np.array([0.1, 20.0])
+    outs = [np.empty((k, 3)), np.empty((k, 3)), np.empty((k, 3)), np.empty((k, 3, 3)),
+            np.empty((k, 3)), np.empty(k)]
+    alg1_kernel(y, u, np.ones(k, bool), np.zeros(k, bool), params.pack(), np.array([2.5e-3, 0, 2.5e-3, 9e-6]),
+                np.zeros(4), np.full(3, -1e9), np.full(3, 1e9), 0.99, 0.010, 0.0, np.zeros(3),
+                pack_particles(x, np.zeros((n, 3)), lam, np.zeros((n, 3)), np.zeros((n, 4))),
+                np.full(n, -math.log(n)), shared, seed_state(np.random.default_rng(0)), *outs)
+    lam_step = math.sqrt(0.99)
+    nu = 20.0
+    gamma = 0.1
+    for _ in range(k):
+        gamma, nu = gamma / (1 + gamma) / lam_step, lam_step * (nu + 1)
+    np.testing.assert_allclose(shared, [gamma, nu], rtol=1e-12)
 
 
 def test_bias_update_is_a_kalman_update():
@@ -270,12 +398,14 @@ def test_end_to_end_on_the_stiffness_study(study_log):
 
     The prior starts C^y 21 % below the plant's axle stiffness; the plant stiffness falls
     50 % at 30 s. Checked: time-mean error over [20, 30) s and [40, 60] s within 15 % of
-    ``ref_stiffness_*`` for every component. Justification of 15 %: the single-track model
-    misses the Magic-Formula plant by −2 % (lateral) to −8 % (longitudinal) even with exact
-    states (docs/results_stiffness.md, model mismatch), and with 100 particles these time
-    means spread over −12 … +7 % across seeds 0–7 (this seed: within 7 %); 15 % bounds the
-    worst of them with margin, while a filter that did not converge from the prior or did
-    not follow the drop misses by 20–100 %.
+    ``ref_stiffness_*`` for every component, and v_y RMSE below 0.25 m/s. Justification: the
+    single-track model misses the Magic-Formula plant by −2 % (lateral) to −8 %
+    (longitudinal) even with exact states (docs/results_stiffness.md, model mismatch), and
+    with 100 particles the largest of these time-mean errors is 8–12 % over filter seeds
+    0–7 (this seed: 8 %) and the v_y RMSE 0.02–0.16 m/s (this seed: 0.16); the bounds hold
+    the worst of them with margin, while a filter that did not converge from the prior or
+    did not follow the drop misses by 20–100 % and one that lost the lateral state has a
+    v_y RMSE above 0.5 m/s.
     """
     log = study_log
     out = estimate_stiffness(_measured(log), SUV_FWD, particles=100, seed=3)
@@ -284,6 +414,34 @@ def test_end_to_end_on_the_stiffness_study(study_log):
         err = (out[f"stiffness_{c}"] - log[f"ref_stiffness_{c}"]) / log[f"ref_stiffness_{c}"]
         for window in ((t >= 20) & (t < 30), t >= 40):
             assert abs(err[window].mean()) < 0.15, c
-    assert np.sqrt(np.mean((out["vy"] - log["ref_vy"]) ** 2)) < 0.15
+    assert np.sqrt(np.mean((out["vy"] - log["ref_vy"]) ** 2)) < 0.25
     ratio = out["stiffness_cy_f"][t >= 40].mean() / out["stiffness_cy_f"][(t >= 20) & (t < 30)].mean()
     assert 0.4 < ratio < 0.6  # the 50 % drop is tracked
+
+
+def test_meets_the_targets_on_002_single_track_data(single_track_data):
+    """002 Sec. VI-A's own setting (the estimation model generates the data; fixture): 200
+    particles, prior 70 % of the truth with 30 % sigma, eq. (9) without model error and the
+    bias known to be zero (002 sets it to zero in this study).
+
+    Checked over the steady state t ∈ [10, 30) ∪ [33, 60] s (3 s after the 50 % drop): the
+    time-mean |error| of every component is below the issue's 2 % (filter seeds 0–7 give
+    0.4–1.4 %; this seed 0.4–0.7 %), no sample is off by more than 10 % (seeds 0–7: at most
+    6 %, the first seconds after the drop, while the slip is small), and v_y is not lost
+    (RMSE below 0.25 m/s; seeds 0–7: 0.02–0.14 m/s). The error is against the level the
+    per-step stiffness scatters around (5 % per step).
+    """
+    log, level, c0 = single_track_data
+    config = StiffnessConfig(wheel_speed_cutoff=0.0, model_error=(0.0, 0.0, 0.0), accel_bias_sd=0.0,
+                             gyro_bias_sd=0.0, accel_bias_walk=0.0, gyro_bias_walk=0.0)
+    prior = StiffnessPrior(nominal=tuple(0.7 * c0), sigma=tuple(0.3 * c0), lower=tuple(0.05 * c0),
+                           upper=tuple(2.5 * c0))
+    out = estimate_stiffness(log.drop(columns=["ref_vy"]), SUV_FWD, particles=200, seed=0,
+                             prior=prior, config=config)
+    t = log["t"].to_numpy()
+    steady = ((t >= 10) & (t < 30)) | (t >= 33)
+    for j, c in ((0, "cx_f"), (2, "cy_f"), (3, "cy_r")):
+        err = np.abs(out[f"stiffness_{c}"].to_numpy() - level[:, j]) / level[:, j]
+        assert err[steady].mean() < 0.02, c
+        assert err[steady].max() < 0.10, c
+    assert np.sqrt(np.mean((out["vy"] - log["ref_vy"]) ** 2)) < 0.25

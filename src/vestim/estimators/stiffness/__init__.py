@@ -9,8 +9,8 @@ Public API:
 * :func:`prepare_inputs` — log → model inputs and measurements.
 
 Modules: ``model`` (single-track model, 002 eq. (1)–(12)), ``pf`` (Algorithm 1
-kernel), ``augpf``, ``baselines`` (RLS + KF, EKF), ``inputs``, ``config``,
-``estimator``.
+kernel), ``draws`` (the kernel's random stream), ``augpf``, ``baselines`` (RLS + KF,
+EKF), ``inputs``, ``config``, ``estimator``.
 """
 
 from vestim.estimators.stiffness.config import StiffnessConfig, StiffnessPrior

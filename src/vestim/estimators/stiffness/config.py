@@ -115,14 +115,24 @@ class StiffnessConfig:
     """Tuning of the stiffness filters (defaults: 002 Sec. VI and the simulator's sensor model).
 
     Attributes:
-        forgetting: λ of 002 eq. (20), per sample at the log rate.
+        forgetting: λ of 002 eq. (20), applied once per ``forgetting_period``.
+        forgetting_period: s; the time over which the statistics forget by λ (a step of
+            length T_s applies λ^(T_s/period)). 0 means one log sample, i.e. 002's
+            per-step λ at the log rate.
         resample_threshold: N_thr/N of Algorithm 1, line 8.
         gamma0, nu0: initial NiW statistics γ_0 and ν_0 (ν_0 > 4 so that eq. (27b) exists).
         accel_noise, gyro_noise: one-sigma white noise of the IMU, m/s² and rad/s (R).
         accel_bias_sd, gyro_bias_sd: one-sigma of the initial bias, m/s² and rad/s (P_0).
+            Zero, with zero random walk, fixes the bias at zero (002 Sec. VI-A's
+            simulation, where the bias is set to zero): the bias filter of eq. (29)–(30)
+            then never moves and the weights see R alone.
         accel_bias_walk, gyro_bias_walk: bias random walk of eq. (11), m/s²/√s and rad/s/√s (Q).
         model_error: white acceleration noise added to the state prediction
-            (m/s², m/s², rad/s²), see :mod:`~vestim.estimators.stiffness.pf`.
+            (m/s², m/s², rad/s²), see :mod:`~vestim.estimators.stiffness.pf`. None on v_x:
+            noise there lets each particle trade its v_x (hence its slip λ, eq. (3))
+            against its C^x, and on 002's own data it raised the C^x error from 0.8 % to
+            4.6 % without helping on the double-track plant (docs/methods_stiffness.md).
+            (0, 0, 0) is 002's eq. (9) exactly.
         initial_state_sd: one-sigma of x_0 = [v_x, v_y, ψ̇] (m/s, m/s, rad/s); 002 Sec. VI-A
             uses P_0 = diag(1, 1, (π/180)²).
         wheel_speed_cutoff: Hz, first-order causal low-pass on the axle-mean wheel speeds
@@ -147,6 +157,7 @@ class StiffnessConfig:
     """
 
     forgetting: float = 0.99
+    forgetting_period: float = 0.0
     resample_threshold: float = 1.0 / 3.0
     gamma0: float = 0.1
     nu0: float = 20.0
@@ -156,7 +167,7 @@ class StiffnessConfig:
     gyro_bias_sd: float = 0.002
     accel_bias_walk: float = 3e-4
     gyro_bias_walk: float = 1.5e-5
-    model_error: tuple[float, float, float] = (0.2, 0.2, 0.1)
+    model_error: tuple[float, float, float] = (0.0, 0.2, 0.1)
     initial_state_sd: tuple[float, float, float] = (1.0, 1.0, math.pi / 180.0)
     wheel_speed_cutoff: float = 8.0
     settle_time: float = 1.0

@@ -18,6 +18,7 @@ import pandas as pd
 from vestim.estimators.stiffness.augpf import augpf_kernel
 from vestim.estimators.stiffness.baselines import ekf_kernel, rls_kf_kernel
 from vestim.estimators.stiffness.config import StiffnessConfig, StiffnessPrior
+from vestim.estimators.stiffness.draws import seed_state
 from vestim.estimators.stiffness.inputs import StiffnessInputs, prepare_inputs
 from vestim.estimators.stiffness.model import (
     N_STATE,
@@ -29,7 +30,18 @@ from vestim.estimators.stiffness.model import (
     YAW_RATE,
     SingleTrackParams,
 )
-from vestim.estimators.stiffness.pf import L00, L11, L22, N_LAM, N_PB, PRR, PXX, PYY, alg1_kernel
+from vestim.estimators.stiffness.pf import (
+    L00,
+    L11,
+    L22,
+    N_LAM,
+    N_PB,
+    PRR,
+    PXX,
+    PYY,
+    alg1_kernel,
+    pack_particles,
+)
 from vestim.io.vehicle import Vehicle
 
 METHODS: tuple[str, ...] = ("pf", "augpf", "rls", "ekf")
@@ -119,6 +131,13 @@ class _Setup:
         qa = self.config.accel_bias_walk**2 * ts
         return np.array([qa, 0.0, qa, self.config.gyro_bias_walk**2 * ts])
 
+    def forgetting_period(self, inputs: StiffnessInputs) -> float:
+        """Seconds over which the statistics forget by λ (eq. (20)); see :class:`StiffnessConfig`."""
+        c = self.config
+        if c.forgetting_period > 0.0:
+            return c.forgetting_period
+        return float(np.median(inputs.u[:, U_DT]))
+
     def x0(self, inputs: StiffnessInputs) -> np.ndarray:
         """Initial mean [v_x, v_y, ψ̇]: wheel-speed reference, 0, measured yaw rate."""
         return np.array([inputs.speed[0], 0.0, inputs.y[0, YAW_RATE]])
@@ -163,7 +182,8 @@ class NoiseAdaptivePF(_Setup):
         self.particles = _check_particles(particles)
 
     def run(self, inputs: StiffnessInputs, rng: np.random.Generator) -> StiffnessResult:
-        """Filter the whole series; ``rng`` draws the initial particles and every random number."""
+        """Filter the whole series; ``rng`` draws the initial particles and seeds the kernel's
+        random stream (:mod:`~vestim.estimators.stiffness.draws`)."""
         n = self.particles
         c = self.config
         k = inputs.t.shape[0]
@@ -179,7 +199,7 @@ class NoiseAdaptivePF(_Setup):
         pb[:, PXX] = c.accel_bias_sd**2
         pb[:, PYY] = c.accel_bias_sd**2
         pb[:, PRR] = c.gyro_bias_sd**2
-        w = np.zeros((n, N_W))
+        part = pack_particles(x, mu, lam, b, pb)
         logw = np.full(n, -math.log(n))
         shared = np.array([c.gamma0, c.nu0])
         x_hat = np.empty((k, N_STATE))
@@ -189,10 +209,10 @@ class NoiseAdaptivePF(_Setup):
         b_hat = np.empty((k, 3))
         ess = np.empty(k)
         n_res = alg1_kernel(inputs.y, inputs.u, inputs.active, inputs.settled, self.p, self.r_pk,
-                            self.q_pk(inputs),
-                            self.lo, self.hi, c.forgetting, c.resample_threshold * n,
-                            np.asarray(c.model_error, dtype=float), x, mu, lam, b, pb, w, logw,
-                            shared, rng, x_hat, x_var, w_hat, w_cov, b_hat, ess)
+                            self.q_pk(inputs), self.lo, self.hi, c.forgetting,
+                            self.forgetting_period(inputs), c.resample_threshold * n,
+                            np.asarray(c.model_error, dtype=float), part, logw, shared,
+                            seed_state(rng), x_hat, x_var, w_hat, w_cov, b_hat, ess)
         w_sd = np.sqrt(np.maximum(np.diagonal(w_cov, axis1=1, axis2=2), 0.0))
         return self.result(inputs, w_hat, w_sd, x_hat, np.sqrt(x_var), b_hat, "pf", ess, n_res)
 

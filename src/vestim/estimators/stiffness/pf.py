@@ -3,8 +3,8 @@
 Each particle i carries the vehicle state x^i, the NiW statistics (μ̂^i, Λ^i)
 of the stiffness deviation w (002 eq. (19)–(20); γ and ν evolve identically
 for all particles and are shared scalars), the mean b^i and covariance P^i of
-its own bias Kalman filter (eq. (29)–(30)), the drawn deviation w^i and a log
-weight. One step k of :func:`alg1_kernel`:
+its own bias Kalman filter (eq. (29)–(30)) and a log weight. One step k of
+:func:`alg1_kernel`:
 
 1. (Algorithm 1, lines 2–5) per particle: the moment-matched Student-t of the
    total measurement noise (eq. (35)) gives the weight update (eq. (36)); the
@@ -12,7 +12,7 @@ weight. One step k of :func:`alg1_kernel`:
    is the predictive of w_k, from which w_k^i is drawn; when the filter is
    active the statistics are updated with that draw (eq. (19)).
 2. (lines 6–10) normalise, N_eff, systematic resampling when N_eff ≤ N_thr,
-   copying states, statistics, biases and draws.
+   copying states, statistics and biases.
 3. (lines 11–13) state estimate (eq. (42)), parameter estimate (eq. (26)–(27)).
 4. (lines 14–20) per particle: bias update (eq. (30)), statistics prediction
    (eq. (20)), state prediction x_{k+1} = f + g w_k (eq. (9)), bias prediction (29).
@@ -22,11 +22,16 @@ Choices where the paper is silent or ambiguous (also in docs/methods_stiffness.m
 * Order. Algorithm 1 updates the statistics (line 4) before it draws w_k
   (line 17), but eq. (19e) needs the draw, and the text after Theorem 1 uses
   the same draw for eq. (19) and for the state prediction. We draw w_k^i from
-  eq. (39) at line 4, use it for eq. (19) and keep it for line 18; resampling
-  copies it with the statistics.
+  eq. (39) at line 4, use it for eq. (19) and keep f + g w_k^i for line 18;
+  resampling copies that prediction with the statistics.
 * Activation (Sec. V). On a step that is not active the statistics are
   frozen: neither eq. (19) nor the forgetting of eq. (20) is applied. Weights,
   draws, bias filter and state prediction run as usual.
+* Forgetting per second. λ of eq. (20) is a per-step factor, and 002 does not
+  state its sample rate (the estimator runs "at several tens of Hz", Sec. IV-B,
+  VII-B). ``forgetting`` is λ per ``forgetting_period`` seconds; a step of
+  length T_s applies λ^(T_s/period). With the period equal to the log's step
+  this is 002's per-step λ.
 * Projection (Sec. V). Draws w^i and means μ̂^i are clipped to the bounds
   [lo, hi] of the deviation after every draw and update.
 * Model error (not in 002). Eq. (9) has no state noise besides w. On the
@@ -36,7 +41,8 @@ Choices where the paper is silent or ambiguous (also in docs/methods_stiffness.m
   state noise the particle cloud collapses (N_eff → 1) and the parameter
   statistics absorb the misfit. ``model_error`` adds white acceleration noise
   (m/s², m/s², rad/s², held over one step) to the state prediction; zero
-  reproduces eq. (9) exactly.
+  reproduces eq. (9) exactly. The default has none on v_x, where it lets each
+  particle trade v_x (hence its slip) against its C^x (docs/methods_stiffness.md).
 * The χ²_ν* variable of the Student-t draw (w = μ* + L n √(ν*/χ²)) uses the
   Wilson–Hilferty approximation χ²_ν/ν ≈ (1 − 2/(9ν) + z √(2/(9ν)))³, z ~ N(0, 1),
   instead of a gamma variate (one normal instead of a rejection sampler). Its
@@ -46,16 +52,39 @@ Choices where the paper is silent or ambiguous (also in docs/methods_stiffness.m
   state posterior is still converging from P_0; statistics and bias filter are
   frozen then (``settled`` = False), see :class:`~vestim.estimators.stiffness.config.StiffnessConfig`.
 * Bias filter. Eq. (30) with the state uncertainty of the cloud added to S; see
-  :func:`bias_update`.
-* Structure used for speed. The gyro row of d is zero, and R, Q and P_0 have no
-  accelerometer–gyro coupling, so every P^i stays block-diagonal (2 × 2
-  accelerometer block, scalar gyro): Λ̃_ē of eq. (35) is block-diagonal and all
-  inverses are 2 × 2. The joint t still has n_e = 3 (the gyro noise shares the
-  t scale variable, so it enters the Mahalanobis distance and ν* = ν̃ + 3).
-  Symmetric matrices are stored packed: Λ as [Λ00, Λ01, Λ02, Λ11, Λ12, Λ22], P as
-  [P_xx, P_xy, P_yy, P_ψψ]. The algebra is that of :mod:`vestim.filters.niw` written out for this sparsity;
-  ``tests/estimators/stiffness/test_pf.py`` checks one step against a
-  composition of the generic functions.
+  :func:`bias_kalman`.
+* Estimates. Lines 11–13 are evaluated on the weighted particles of line 6,
+  before the resampling of lines 8–10: the same sums (42), (26)–(27) of the same
+  posterior, without the extra Monte-Carlo variance that resampling adds
+  (Doucet & Johansen, 002 ref. [17]). They are outputs and do not feed back,
+  except the cloud covariance of the bias filter (:func:`bias_kalman`).
+
+Structure used for speed (the arithmetic is that of :mod:`vestim.filters.niw`
+written out for this sparsity; ``tests/estimators/stiffness/test_pf.py`` checks
+steps against a composition of the generic functions):
+
+* The gyro row of d is zero, and R, Q and P_0 have no accelerometer–gyro
+  coupling, so every P^i stays block-diagonal (2 × 2 accelerometer block, scalar
+  gyro): Λ̃_ē of eq. (35) is block-diagonal and all inverses are 2 × 2. The joint
+  t still has n_e = 3 (the gyro noise shares the t scale variable, so it enters
+  the Mahalanobis distance and ν* = ν̃ + 3).
+* Each particle is one row of a packed array (columns ``C_*``); symmetric
+  matrices are stored packed: Λ as [Λ00, Λ01, Λ02, Λ11, Λ12, Λ22], P as
+  [P_xx, P_xy, P_yy, P_ψψ]. Resampling copies rows into a second buffer.
+* One pass over the particles per step: lines 14–20 of step k − 1 (they need
+  nothing from the other particles once the cloud covariance of step k − 1 is
+  known) run in the same loop as lines 2–5 of step k. What lines 14–20 need from
+  lines 2–5 is computed there: the prediction f + g w_k (line 18 without the
+  model-error noise), the innovation of eq. (30) and d Σ̂_{k|k} dᵀ, which follows
+  from the d Λ_{k|k−1} dᵀ of eq. (35) and the rank-one update (19d). The
+  forgetting (20) of Λ is applied right after (19), so the statistics in the
+  array are S_{k+1|k}. A second pass normalises the weights (line 6) and
+  accumulates N_eff and all moments of lines 11–13.
+* Random numbers come from :mod:`~vestim.estimators.stiffness.draws` (an inline
+  stream seeded from the caller's Generator): at the start of each step one block
+  of normals per particle (columns ``D_*``: the three of the t draw of w_k, the
+  Wilson–Hilferty one, then the model-error noise of step k − 1), one uniform per
+  resampling.
 """
 
 from __future__ import annotations
@@ -66,6 +95,7 @@ from typing import Any
 import numpy as np
 from numba import njit
 
+from vestim.estimators.stiffness.draws import fill_normals, uniform
 from vestim.estimators.stiffness.model import (
     M_AX,
     M_AY,
@@ -82,9 +112,13 @@ from vestim.estimators.stiffness.model import (
     YAW_RATE,
     terms,
 )
-from vestim.filters.resampling import effective_sample_size, normalize_log_weights, systematic_resample
+from vestim.filters.resampling import systematic_resample
 
 _JIT: dict[str, Any] = {"cache": True, "error_model": "numpy"}
+_FAST: dict[str, Any] = {**_JIT, "fastmath": {"contract", "arcp", "nsz"}}
+"""Fused multiply-add, reciprocal multiplication and signed-zero freedom only: the
+kernel relies on inf and NaN semantics (a particle with a non-finite weight is
+dropped), so ``nnan``/``ninf`` stay off."""
 
 # Packed symmetric layouts.
 L00, L01, L02, L11, L12, L22 = range(6)
@@ -96,8 +130,53 @@ N_PB = 4
 N_TERMS = 14
 """Number of values returned by :func:`~vestim.estimators.stiffness.model.terms`."""
 
+# Columns of the packed particle array (one row per particle).
+C_X = 0
+"""x_k = [v_x, v_y, ψ̇] (m/s, m/s, rad/s), 3 columns."""
+C_XN = 3
+"""f(x_k) + g(x_k) w_k, the prediction of eq. (9) before the model-error noise, 3 columns."""
+C_MU = 6
+"""μ̂ of the NiW statistics (N per unit slip, N/rad, N/rad), 3 columns."""
+C_LAM = 9
+"""Λ of the NiW statistics, packed (``L00`` …), 6 columns."""
+C_B = 15
+"""Bias mean b = [b_ax, b_ay, b_ψ̇] (m/s², m/s², rad/s), 3 columns."""
+C_PB = 18
+"""Bias covariance P, packed (``PXX`` …), 4 columns."""
+C_EB = 22
+"""Innovation y − h − d μ̂_{k|k} − b_{k|k−1} of eq. (30), 3 columns."""
+C_SB = 25
+"""d Σ̂_{k|k} dᵀ (accelerometer block, packed ``PXX``, ``PXY``, ``PYY``) of eq. (30), 3 columns."""
+N_COL = 28
+
+# Columns of the per-step block of standard normals (one row per particle).
+D_W = 0
+"""The three normals of the Student-t draw of w_k (eq. (39))."""
+D_CHI = 3
+"""The normal of the Wilson–Hilferty χ² of that draw."""
+D_ME = 4
+"""The normals of the model-error noise, [v_y, ψ̇] if either is non-zero, then v_x if non-zero."""
+
 CHOL_FLOOR = 1e-12
 """Relative floor on a Cholesky pivot (round-off on a semi-definite scale matrix)."""
+
+
+def pack_particles(x: np.ndarray, mu: np.ndarray, lam: np.ndarray, b: np.ndarray,
+                   pb: np.ndarray) -> np.ndarray:
+    """Packed particle array (N, ``N_COL``) for :func:`alg1_kernel` from per-quantity arrays.
+
+    Args:
+        x: (N, 3) states. mu: (N, 3) and lam: (N, 6) NiW statistics μ̂, Λ (packed).
+        b: (N, 3) bias means. pb: (N, 4) bias covariances (packed).
+    """
+    n = x.shape[0]
+    part = np.zeros((n, N_COL))
+    part[:, C_X:C_X + 3] = x
+    part[:, C_MU:C_MU + 3] = mu
+    part[:, C_LAM:C_LAM + N_LAM] = lam
+    part[:, C_B:C_B + 3] = b
+    part[:, C_PB:C_PB + N_PB] = pb
+    return part
 
 
 @njit(**_JIT)
@@ -109,8 +188,9 @@ def chol3(a00: float, a01: float, a02: float, a11: float, a12: float,
     """
     floor = CHOL_FLOOR * max(a00, a11, a22, 1e-300)
     l00 = math.sqrt(max(a00, floor))
-    l10 = a01 / l00
-    l20 = a02 / l00
+    i00 = 1.0 / l00
+    l10 = a01 * i00
+    l20 = a02 * i00
     l11 = math.sqrt(max(a11 - l10 * l10, floor))
     l21 = (a12 - l20 * l10) / l11
     l22 = math.sqrt(max(a22 - l20 * l20 - l21 * l21, floor))
@@ -118,14 +198,16 @@ def chol3(a00: float, a01: float, a02: float, a11: float, a12: float,
 
 
 @njit(**_JIT)
-def bias_update(b: np.ndarray, pb: np.ndarray, e0: float, e1: float, e2: float,
-                s00: float, s01: float, s11: float, r: np.ndarray, x_unc: np.ndarray) -> None:
-    """Kalman update of one particle's bias, 002 eq. (30), in place on ``b`` (3,) and ``pb`` (4,).
+def bias_kalman(b0: float, b1: float, b2: float, p00: float, p01: float, p11: float, prr: float,
+                e0: float, e1: float, e2: float, s00: float, s01: float, s11: float,
+                r00: float, r01: float, r11: float, rrr: float, u00: float, u01: float,
+                u11: float, urr: float) -> tuple[float, float, float, float, float, float, float]:
+    """Kalman update of one particle's bias, 002 eq. (30), on scalars.
 
-    Innovation (e0, e1, e2) = y − h − d μ̂_{k|k} − b_{k|k−1}; (s00, s01, s11) = d Σ̂ dᵀ
-    (accelerometer block). S = P + R + d Σ̂ dᵀ + H P_x Hᵀ, K = P S⁻¹, b ← b + K e and
-    P ← P − K S Kᵀ = P − P S⁻¹ P. ``r`` is R packed like ``pb``; ``x_unc`` is H P_x Hᵀ
-    packed the same way.
+    Innovation (e0, e1, e2) = y − h − d μ̂_{k|k} − b_{k|k−1} (m/s², m/s², rad/s);
+    (s00, s01, s11) = d Σ̂_{k|k} dᵀ (accelerometer block); (r..) = R and (u..) = H P_x Hᵀ,
+    packed like P. S = P + R + d Σ̂ dᵀ + H P_x Hᵀ, K = P S⁻¹, b ← b + K e and
+    P ← P − K S Kᵀ = P − P S⁻¹ P.
 
     Two deviations from the printed eq. (30): 002 prints P − K S⁻¹ Kᵀ, which is not
     the Kalman covariance update (we use the standard form); and eq. (30) treats the
@@ -136,33 +218,41 @@ def bias_update(b: np.ndarray, pb: np.ndarray, e0: float, e1: float, e2: float,
     posterior state covariance P_x of the cloud, mapped through H = ∂[a_x, a_y, ψ̇]/∂x
     at the weighted mean, keeps the bias filter out of the state transient and
     vanishes once the cloud has converged.
+
+    Returns:
+        (b0, b1, b2, P_xx, P_xy, P_yy, P_ψψ) of b_{k|k}, P_{k|k}.
     """
-    p00 = pb[PXX]
-    p01 = pb[PXY]
-    p11 = pb[PYY]
-    prr = pb[PRR]
-    a00 = p00 + r[PXX] + s00 + x_unc[PXX]
-    a01 = p01 + r[PXY] + s01 + x_unc[PXY]
-    a11 = p11 + r[PYY] + s11 + x_unc[PYY]
+    a00 = p00 + r00 + s00 + u00
+    a01 = p01 + r01 + s01 + u01
+    a11 = p11 + r11 + s11 + u11
     det = a00 * a11 - a01 * a01
-    i00 = a11 / det
-    i01 = -a01 / det
-    i11 = a00 / det
+    srr = prr + rrr + urr
+    inv_all = 1.0 / (det * srr)     # one division for the 2 × 2 block and the gyro
+    inv_det = srr * inv_all
+    i00 = a11 * inv_det
+    i01 = -a01 * inv_det
+    i11 = a00 * inv_det
     # K = P S⁻¹ (2 × 2)
     k00 = p00 * i00 + p01 * i01
     k01 = p00 * i01 + p01 * i11
     k10 = p01 * i00 + p11 * i01
     k11 = p01 * i01 + p11 * i11
-    b[M_AX] += k00 * e0 + k01 * e1
-    b[M_AY] += k10 * e0 + k11 * e1
+    krr = prr * det * inv_all
     # P − K P (= P − P S⁻¹ P, symmetric)
-    pb[PXX] = p00 - (k00 * p00 + k01 * p01)
-    pb[PXY] = p01 - (k00 * p01 + k01 * p11)
-    pb[PYY] = p11 - (k10 * p01 + k11 * p11)
-    srr = prr + r[PRR] + x_unc[PRR]
-    krr = prr / srr
-    b[M_YAW_RATE] += krr * e2
-    pb[PRR] = prr - krr * prr
+    return (b0 + k00 * e0 + k01 * e1, b1 + k10 * e0 + k11 * e1, b2 + krr * e2,
+            p00 - (k00 * p00 + k01 * p01), p01 - (k00 * p01 + k01 * p11),
+            p11 - (k10 * p01 + k11 * p11), prr - krr * prr)
+
+
+@njit(**_JIT)
+def bias_update(b: np.ndarray, pb: np.ndarray, e0: float, e1: float, e2: float,
+                s00: float, s01: float, s11: float, r: np.ndarray, x_unc: np.ndarray) -> None:
+    """:func:`bias_kalman` in place on ``b`` (3,) and ``pb`` (4,); ``r``, ``x_unc`` packed like ``pb``."""
+    out = bias_kalman(b[M_AX], b[M_AY], b[M_YAW_RATE], pb[PXX], pb[PXY], pb[PYY], pb[PRR],
+                      e0, e1, e2, s00, s01, s11, r[PXX], r[PXY], r[PYY], r[PRR],
+                      x_unc[PXX], x_unc[PXY], x_unc[PYY], x_unc[PRR])
+    b[M_AX], b[M_AY], b[M_YAW_RATE] = out[0], out[1], out[2]
+    pb[PXX], pb[PXY], pb[PYY], pb[PRR] = out[3], out[4], out[5], out[6]
 
 
 @njit(**_JIT)
@@ -182,78 +272,108 @@ def weighted_state_moments(q: np.ndarray, x: np.ndarray, mean: np.ndarray, var: 
 
 
 @njit(**_JIT)
-def state_uncertainty(q: np.ndarray, x: np.ndarray, x_mean: np.ndarray, delta: float,
-                      sin_d: float, cos_d: float, om_f: float, om_r: float, ts: float,
-                      p: np.ndarray, out: np.ndarray) -> None:
-    """H P_x Hᵀ of the measurement [a_x, a_y, ψ̇], packed like P (see :func:`bias_update`).
+def accel_jacobian(vx: float, vy: float, r: float, delta: float, sin_d: float, cos_d: float,
+                   om_f: float, om_r: float, ts: float,
+                   p: np.ndarray) -> tuple[float, float, float, float, float, float]:
+    """∂[a_x, a_y]/∂[v_x, v_y, ψ̇] of eq. (12) at nominal stiffness, by central differences.
 
-    P_x is the weighted covariance of the particle states, H = ∂h/∂x at the weighted
-    mean by central differences of :func:`~vestim.estimators.stiffness.model.terms`.
+    Returns:
+        (∂a_x/∂v_x, ∂a_x/∂v_y, ∂a_x/∂ψ̇, ∂a_y/∂v_x, ∂a_y/∂v_y, ∂a_y/∂ψ̇).
     """
-    cov = np.zeros((3, 3))
-    for i in range(q.shape[0]):
-        for a in range(3):
-            ea = x[i, a] - x_mean[a]
-            for c in range(a + 1):
-                cov[a, c] += q[i] * ea * (x[i, c] - x_mean[c])
-    for a in range(3):
-        for c in range(a):
-            cov[c, a] = cov[a, c]
-    hx = np.empty((2, 3))
-    xp = np.empty(3)
-    steps = (1e-3, 1e-4, 1e-5)
-    for j in range(3):
-        for sign in (1.0, -1.0):
-            xp[0] = x_mean[0]
-            xp[1] = x_mean[1]
-            xp[2] = x_mean[2]
-            xp[j] += sign * steps[j]
-            tr = terms(xp[0], xp[1], xp[2], delta, sin_d, cos_d, om_f, om_r, ts, p)
-            if sign > 0.0:
-                hx[0, j] = tr[3]
-                hx[1, j] = tr[4]
-            else:
-                hx[0, j] = (hx[0, j] - tr[3]) / (2.0 * steps[j])
-                hx[1, j] = (hx[1, j] - tr[4]) / (2.0 * steps[j])
-    s00 = 0.0
-    s01 = 0.0
-    s11 = 0.0
-    for a in range(3):
-        for c in range(3):
-            s00 += hx[0, a] * cov[a, c] * hx[0, c]
-            s01 += hx[0, a] * cov[a, c] * hx[1, c]
-            s11 += hx[1, a] * cov[a, c] * hx[1, c]
-    out[PXX] = s00
-    out[PXY] = s01
-    out[PYY] = s11
-    out[PRR] = cov[YAW_RATE, YAW_RATE]
+    h0 = 1e-3
+    h1 = 1e-4
+    h2 = 1e-5
+    tp = terms(vx + h0, vy, r, delta, sin_d, cos_d, om_f, om_r, ts, p)
+    tm = terms(vx - h0, vy, r, delta, sin_d, cos_d, om_f, om_r, ts, p)
+    x0 = (tp[3] - tm[3]) / (2.0 * h0)
+    y0 = (tp[4] - tm[4]) / (2.0 * h0)
+    tp = terms(vx, vy + h1, r, delta, sin_d, cos_d, om_f, om_r, ts, p)
+    tm = terms(vx, vy - h1, r, delta, sin_d, cos_d, om_f, om_r, ts, p)
+    x1 = (tp[3] - tm[3]) / (2.0 * h1)
+    y1 = (tp[4] - tm[4]) / (2.0 * h1)
+    tp = terms(vx, vy, r + h2, delta, sin_d, cos_d, om_f, om_r, ts, p)
+    tm = terms(vx, vy, r - h2, delta, sin_d, cos_d, om_f, om_r, ts, p)
+    x2 = (tp[3] - tm[3]) / (2.0 * h2)
+    y2 = (tp[4] - tm[4]) / (2.0 * h2)
+    return x0, x1, x2, y0, y1, y2
 
 
 @njit(**_JIT)
+def project_state_cov(hx: tuple[float, float, float, float, float, float], c00: float,
+                      c01: float, c02: float, c11: float, c12: float,
+                      c22: float) -> tuple[float, float, float, float]:
+    """H P_x Hᵀ of the measurement [a_x, a_y, ψ̇], packed like P (see :func:`bias_kalman`).
+
+    ``hx`` from :func:`accel_jacobian`; (c..) the packed state covariance P_x. The
+    yaw-rate row of H is [0, 0, 1].
+    """
+    h00, h01, h02, h10, h11, h12 = hx
+    # P_x Hᵀ columns
+    a0 = c00 * h00 + c01 * h01 + c02 * h02
+    a1 = c01 * h00 + c11 * h01 + c12 * h02
+    a2 = c02 * h00 + c12 * h01 + c22 * h02
+    b0 = c00 * h10 + c01 * h11 + c02 * h12
+    b1 = c01 * h10 + c11 * h11 + c12 * h12
+    b2 = c02 * h10 + c12 * h11 + c22 * h12
+    return (h00 * a0 + h01 * a1 + h02 * a2, h10 * a0 + h11 * a1 + h12 * a2,
+            h10 * b0 + h11 * b1 + h12 * b2, c22)
+
+
+@njit(**_JIT)
+def state_uncertainty(q: np.ndarray, x: np.ndarray, x_mean: np.ndarray, delta: float,
+                      sin_d: float, cos_d: float, om_f: float, om_r: float, ts: float,
+                      p: np.ndarray, out: np.ndarray) -> None:
+    """H P_x Hᵀ of the measurement [a_x, a_y, ψ̇] into ``out``, packed like P.
+
+    P_x is the weighted covariance of the particle states ``x`` (N, 3) about ``x_mean``,
+    H = ∂h/∂x at ``x_mean`` (:func:`accel_jacobian`).
+    """
+    c00 = c01 = c02 = c11 = c12 = c22 = 0.0
+    for i in range(q.shape[0]):
+        e0 = x[i, VX] - x_mean[VX]
+        e1 = x[i, VY] - x_mean[VY]
+        e2 = x[i, YAW_RATE] - x_mean[YAW_RATE]
+        qi = q[i]
+        c00 += qi * e0 * e0
+        c01 += qi * e0 * e1
+        c02 += qi * e0 * e2
+        c11 += qi * e1 * e1
+        c12 += qi * e1 * e2
+        c22 += qi * e2 * e2
+    hx = accel_jacobian(x_mean[VX], x_mean[VY], x_mean[YAW_RATE], delta, sin_d, cos_d, om_f,
+                        om_r, ts, p)
+    out[PXX], out[PXY], out[PYY], out[PRR] = project_state_cov(hx, c00, c01, c02, c11, c12, c22)
+
+
+@njit(**_FAST)
 def alg1_kernel(y: np.ndarray, u: np.ndarray, active: np.ndarray, bias_on: np.ndarray,
                 p: np.ndarray,
                 r_pk: np.ndarray, q_pk: np.ndarray, lo: np.ndarray, hi: np.ndarray,
-                forgetting: float, n_thr: float, model_error: np.ndarray,
-                x: np.ndarray, mu: np.ndarray, lam: np.ndarray, b: np.ndarray, pb: np.ndarray,
-                w: np.ndarray, logw: np.ndarray, shared: np.ndarray, rng: np.random.Generator,
+                forgetting: float, forgetting_period: float, n_thr: float,
+                model_error: np.ndarray, part: np.ndarray, logw: np.ndarray, shared: np.ndarray,
+                rng_state: np.ndarray,
                 x_hat: np.ndarray, x_var: np.ndarray, w_hat: np.ndarray, w_cov: np.ndarray,
                 b_hat: np.ndarray, ess: np.ndarray) -> int:
-    """Run Algorithm 1 of 002 over K steps; particle arrays are updated in place.
+    """Run Algorithm 1 of 002 over K steps; the particle array is updated in place.
 
     Args:
         y: (K, 3) measurements [a_x, a_y, ψ̇] (m/s², m/s², rad/s; roll/pitch compensated).
         u: (K, 4) inputs [δ rad, ω_f rad/s, ω_r rad/s, T_s s]. active: (K,) bool (Sec. V).
         bias_on: (K,) bool; where False the bias filter is frozen (no eq. (29)–(30)).
         p: model parameters (``model.P_*``).
-        r_pk, q_pk: R and Q of eq. (11)–(12), packed like ``pb`` (m²/s⁴, rad²/s²).
+        r_pk, q_pk: R and Q of eq. (11)–(12), packed like P (m²/s⁴, rad²/s²; Q per step).
         lo, hi: (3,) bounds of the deviation w (projection, Sec. V).
-        forgetting: λ of eq. (20). n_thr: N_thr of Algorithm 1, line 8 (particles).
+        forgetting: λ of eq. (20) per ``forgetting_period`` seconds (see the module
+            docstring); a step of length T_s forgets by λ^(T_s/period).
+        n_thr: N_thr of Algorithm 1, line 8 (particles).
         model_error: (3,) std of the acceleration noise added to the state prediction
             (m/s², m/s², rad/s²; see the module docstring), zeros for eq. (9) as printed.
-        x: (N, 3) states x_k. mu: (N, 3), lam: (N, 6) statistics μ̂, Λ of S_{k|k−1}.
-        b: (N, 3), pb: (N, 4) bias mean and covariance b_{k|k−1}, P_{k|k−1}.
-        w: (N, 3) scratch for the draws w_k^i. logw: (N,) log weights.
-        shared: [γ_{k|k−1}, ν_{k|k−1}], updated in place. rng: draws normals, χ², uniforms.
+        part: (N, ``N_COL``) particles (:func:`pack_particles`) holding x_k, S_{k|k−1},
+            b_{k|k−1}, P_{k|k−1}; on return x_K, S_{K|K−1}, b_{K|K−1}, P_{K|K−1}.
+        logw: (N,) log weights. shared: [γ_{k|k−1}, ν_{k|k−1}], updated in place.
+        rng_state: (4,) uint64 state of the random stream (:mod:`~vestim.estimators.stiffness.draws`,
+            seeded from a ``numpy.random.Generator`` by ``draws.seed_state``), advanced in
+            place: every normal and the resampling uniform.
         x_hat, x_var: (K, 3) ← weighted mean and variance of x_k (eq. (42)).
         w_hat: (K, 3) ← μ̂_k (eq. (27a)). w_cov: (K, 3, 3) ← Σ̂_k (eq. (27b)).
         b_hat: (K, 3) ← weighted mean of b_{k|k}. ess: (K,) ← N_eff of line 7.
@@ -261,61 +381,134 @@ def alg1_kernel(y: np.ndarray, u: np.ndarray, active: np.ndarray, bias_on: np.nd
     Returns:
         The number of resampling events.
     """
-    n_part = x.shape[0]
+    n_part = part.shape[0]
+    n_steps = y.shape[0]
+    if n_steps == 0:
+        return 0
+    spare = np.empty_like(part)
     q = np.empty(n_part)
     idx = np.empty(n_part, dtype=np.int64)
-    x_new = np.empty_like(x)
-    mu_new = np.empty_like(mu)
-    lam_new = np.empty_like(lam)
-    b_new = np.empty_like(b)
-    pb_new = np.empty_like(pb)
-    w_new = np.empty_like(w)
-    x_unc = np.empty(N_PB)
-    mt = np.empty((n_part, N_TERMS))
-    mt_new = np.empty((n_part, N_TERMS))
+    x_unc = np.zeros(N_PB)
+    me_lat = model_error[VY] > 0.0 or model_error[YAW_RATE] > 0.0
+    c_vx = (D_ME + 2 if me_lat else D_ME) if model_error[VX] > 0.0 else -1
+    nrm = np.empty((n_part, max(c_vx + 1, D_ME + 2 if me_lat else D_ME)))
+    log_n = math.log(n_part)
     n_resampled = 0
     gamma = shared[0]
     nu = shared[1]
-    me_vx = model_error[VX] > 0.0
-    me_lat = model_error[VY] > 0.0 or model_error[YAW_RATE] > 0.0
+    me_vx = model_error[VX]
+    me_vy = model_error[VY]
+    me_r = model_error[YAW_RATE]
     r00 = r_pk[PXX]
     r01 = r_pk[PXY]
     r11 = r_pk[PYY]
     rrr = r_pk[PRR]
-    for k in range(y.shape[0]):
-        delta = u[k, U_DELTA]
+    lo0, lo1, lo2 = lo[W_CX], lo[W_CYF], lo[W_CYR]
+    hi0, hi1, hi2 = hi[W_CX], hi[W_CYF], hi[W_CYR]
+    # q holds the normalised weights after the previous step's resampling (for b_hat)
+    top = -math.inf
+    for i in range(n_part):
+        top = max(top, logw[i])
+    s = 0.0
+    for i in range(n_part):
+        q[i] = math.exp(logw[i] - top)
+        s += q[i]
+    for i in range(n_part):
+        q[i] /= s
+    ts_prev = 0.0
+    # One pass more than steps: the last pass only finishes step K − 1 (lines 14–20).
+    for k in range(n_steps + 1):
+        last = k == n_steps
+        kk = min(k, n_steps - 1)
+        delta = u[kk, U_DELTA]
         sd = math.sin(delta)
         cd = math.cos(delta)
-        om_f = u[k, U_OMEGA_F]
-        om_r = u[k, U_OMEGA_R]
-        ts = u[k, U_DT]
-        y0 = y[k, M_AX]
-        y1 = y[k, M_AY]
-        y2 = y[k, M_YAW_RATE]
-        act = active[k]
+        om_f = u[kk, U_OMEGA_F]
+        om_r = u[kk, U_OMEGA_R]
+        ts = u[kk, U_DT]
+        y0 = y[kk, M_AX]
+        y1 = y[kk, M_AY]
+        y2 = y[kk, M_YAW_RATE]
+        act = active[kk] and not last
+        finish = k > 0
+        finish_bias = finish and bias_on[k - 1]
+        lam_k = forgetting ** (ts / forgetting_period)   # λ of eq. (20) for this step
         dof = nu - 2.0              # ν̃ = ν − n_w + 1
-        c1 = (1.0 + gamma) / dof    # scale of the w predictive (21); also S_w of the joint t
-        c2 = (dof - 2.0) / dof      # moment matching of R + P (35)
+        inv_dof = 1.0 / dof
+        c1 = (1.0 + gamma) * inv_dof    # scale of the w predictive (21); also S_w of the joint t
+        c2 = (dof - 2.0) * inv_dof      # moment matching of R + P (35)
         dof_c = dof + 3.0           # ν* = ν̃ + n_e (41)
+        half_dof_c = 0.5 * dof_c
+        c_scale = c1 / dof_c        # S_w of (41) = (ν̃ + maha)/ν* · c1 · (Λ − …)
         wh_a = 2.0 / (9.0 * dof_c)
         wh_b = math.sqrt(wh_a)
-        g_post = gamma / (1.0 + gamma)
-        c_upd = 1.0 / (1.0 + gamma)
-        # ---- Algorithm 1, lines 2–5
+        if act:
+            g_post = gamma / (1.0 + gamma)
+            c_upd = 1.0 / (1.0 + gamma)
+            nu_post = nu + 1.0
+            lam_f = lam_k
+        else:
+            g_post = 0.0
+            c_upd = 0.0
+            nu_post = nu
+            lam_f = 1.0
+        inv_c_post = 1.0 / (nu_post - 4.0)    # Σ̂_{k|k} = Λ_{k|k}/(ν_{k|k} − n_w − 1)
+        top = -math.inf
+        bh0 = 0.0
+        bh1 = 0.0
+        bh2 = 0.0
+        fill_normals(rng_state, nrm)
         for i in range(n_part):
-            vx = x[i, VX]
-            vy = x[i, VY]
-            r = x[i, YAW_RATE]
-            tr = terms(vx, vy, r, delta, sd, cd, om_f, om_r, ts, p)
-            (_, _, _, ax, ay, dxx, dxyf, dxyr, dyx, dyyf, dyyr, _, _, _) = tr
-            for a in range(N_TERMS):
-                mt[i, a] = tr[a]
-            l00 = lam[i, L00]
-            l01 = lam[i, L01]
-            l02 = lam[i, L02]
-            l11 = lam[i, L11]
-            l12 = lam[i, L12]
-            l22 = lam[i, L22]
+            if finish:
+                # ---- lines 14–20 of step k − 1 (their turn comes before lines 2–5 of step k):
+                # bias update (30) with the innovation and d Σ̂ dᵀ stored by lines 2–5, bias
+                # prediction (29), and x_k = f + g w_{k−1} plus the model-error noise, drawn
+                # only where non-zero (v_y, ψ̇ from nrm[i, D_ME:D_ME + 2], v_x from nrm[i, c_vx]).
+                # Written out here: a helper taking the arrays costs reference counting per call.
+                if finish_bias:
+                    nb = bias_kalman(part[i, C_B], part[i, C_B + 1], part[i, C_B + 2],
+                                     part[i, C_PB + PXX], part[i, C_PB + PXY], part[i, C_PB + PYY],
+                                     part[i, C_PB + PRR],
+                                     part[i, C_EB], part[i, C_EB + 1], part[i, C_EB + 2],
+                                     part[i, C_SB + PXX], part[i, C_SB + PXY], part[i, C_SB + PYY],
+                                     r00, r01, r11, rrr, x_unc[PXX], x_unc[PXY], x_unc[PYY],
+                                     x_unc[PRR])
+                    part[i, C_B] = nb[0]
+                    part[i, C_B + 1] = nb[1]
+                    part[i, C_B + 2] = nb[2]
+                    part[i, C_PB + PXX] = nb[3] + q_pk[PXX]
+                    part[i, C_PB + PXY] = nb[4] + q_pk[PXY]
+                    part[i, C_PB + PYY] = nb[5] + q_pk[PYY]
+                    part[i, C_PB + PRR] = nb[6] + q_pk[PRR]
+                xn0 = part[i, C_XN + VX]
+                xn1 = part[i, C_XN + VY]
+                xn2 = part[i, C_XN + YAW_RATE]
+                if me_lat:
+                    xn1 += ts_prev * me_vy * nrm[i, D_ME]
+                    xn2 += ts_prev * me_r * nrm[i, D_ME + 1]
+                if c_vx >= 0:
+                    xn0 += ts_prev * me_vx * nrm[i, c_vx]
+                part[i, C_X + VX] = xn0
+                part[i, C_X + VY] = xn1
+                part[i, C_X + YAW_RATE] = xn2
+                qi = q[i]
+                bh0 += qi * part[i, C_B]
+                bh1 += qi * part[i, C_B + 1]
+                bh2 += qi * part[i, C_B + 2]
+            if last:
+                continue
+            # ---- Algorithm 1, lines 2–5
+            vx = part[i, C_X + VX]
+            vy = part[i, C_X + VY]
+            r = part[i, C_X + YAW_RATE]
+            (f0, f1, f2, ax, ay, dxx, dxyf, dxyr, dyx, dyyf, dyyr, grx, gryf, gryr) = terms(
+                vx, vy, r, delta, sd, cd, om_f, om_r, ts, p)
+            l00 = part[i, C_LAM + L00]
+            l01 = part[i, C_LAM + L01]
+            l02 = part[i, C_LAM + L02]
+            l11 = part[i, C_LAM + L11]
+            l12 = part[i, C_LAM + L12]
+            l22 = part[i, C_LAM + L22]
             # rows of d Λ (accelerometer rows of d)
             a0 = dxx * l00 + dxyf * l01 + dxyr * l02
             a1 = dxx * l01 + dxyf * l11 + dxyr * l12
@@ -323,28 +516,38 @@ def alg1_kernel(y: np.ndarray, u: np.ndarray, active: np.ndarray, bias_on: np.nd
             b0 = dyx * l00 + dyyf * l01 + dyyr * l02
             b1 = dyx * l01 + dyyf * l11 + dyyr * l12
             b2 = dyx * l02 + dyyf * l12 + dyyr * l22
+            # d Λ dᵀ (accelerometer block)
+            g00 = a0 * dxx + a1 * dxyf + a2 * dxyr
+            g01 = a0 * dyx + a1 * dyyf + a2 * dyyr
+            g11 = b0 * dyx + b1 * dyyf + b2 * dyyr
             # Λ̃_ē, eq. (35): c1 d Λ dᵀ + c2 (R + P)
-            e00 = c1 * (a0 * dxx + a1 * dxyf + a2 * dxyr) + c2 * (r00 + pb[i, PXX])
-            e01 = c1 * (a0 * dyx + a1 * dyyf + a2 * dyyr) + c2 * (r01 + pb[i, PXY])
-            e11 = c1 * (b0 * dyx + b1 * dyyf + b2 * dyyr) + c2 * (r11 + pb[i, PYY])
-            err = c2 * (rrr + pb[i, PRR])
+            e00 = c1 * g00 + c2 * (r00 + part[i, C_PB + PXX])
+            e01 = c1 * g01 + c2 * (r01 + part[i, C_PB + PXY])
+            e11 = c1 * g11 + c2 * (r11 + part[i, C_PB + PYY])
+            err = c2 * (rrr + part[i, C_PB + PRR])
             det = e00 * e11 - e01 * e01
-            inv_det = 1.0 / det
+            det_all = det * err
+            inv_all = 1.0 / det_all
+            inv_det = err * inv_all
             i00 = e11 * inv_det
             i01 = -e01 * inv_det
             i11 = e00 * inv_det
-            m0 = mu[i, W_CX]
-            m1 = mu[i, W_CYF]
-            m2 = mu[i, W_CYR]
+            m0 = part[i, C_MU + W_CX]
+            m1 = part[i, C_MU + W_CYF]
+            m2 = part[i, C_MU + W_CYR]
             # innovation z = ē − d μ̂ with ē = y − h − b (bias marginalised through P)
-            z0 = y0 - ax - b[i, M_AX] - (dxx * m0 + dxyf * m1 + dxyr * m2)
-            z1 = y1 - ay - b[i, M_AY] - (dyx * m0 + dyyf * m1 + dyyr * m2)
-            z2 = y2 - r - b[i, M_YAW_RATE]
+            z0 = y0 - ax - part[i, C_B + M_AX] - (dxx * m0 + dxyf * m1 + dxyr * m2)
+            z1 = y1 - ay - part[i, C_B + M_AY] - (dyx * m0 + dyyf * m1 + dyyr * m2)
+            z2 = y2 - r - part[i, C_B + M_YAW_RATE]
             v0 = i00 * z0 + i01 * z1
             v1 = i01 * z0 + i11 * z1
-            maha = z0 * v0 + z1 * v1 + z2 * z2 / err
+            maha = z0 * v0 + z1 * v1 + z2 * z2 * (det * inv_all)
             # weight, eq. (36): St(z; 0, Λ̃_ē, ν̃) up to a factor common to all particles
-            logw[i] += -0.5 * math.log(det * err) - 0.5 * (dof + 3.0) * math.log1p(maha / dof)
+            lw = logw[i] - 0.5 * math.log(det_all) - half_dof_c * math.log(1.0 + maha * inv_dof)
+            if not lw > -math.inf:      # NaN (indefinite scale) drops the particle
+                lw = -math.inf
+            logw[i] = lw
+            top = max(top, lw)
             # Theorem 1, eq. (40)–(41): S_w dᵀ = c1 (d Λ)ᵀ
             mc0 = m0 + c1 * (a0 * v0 + b0 * v1)
             mc1 = m1 + c1 * (a1 * v0 + b1 * v1)
@@ -356,168 +559,176 @@ def alg1_kernel(y: np.ndarray, u: np.ndarray, active: np.ndarray, bias_on: np.nd
             t11 = a1 * i01 + b1 * i11
             t20 = a2 * i00 + b2 * i01
             t21 = a2 * i01 + b2 * i11
-            cc = (dof + maha) / (dof + 3.0) * c1
-            s00 = cc * (l00 - c1 * (t00 * a0 + t01 * b0))
-            s01 = cc * (l01 - c1 * (t00 * a1 + t01 * b1))
-            s02 = cc * (l02 - c1 * (t00 * a2 + t01 * b2))
-            s11 = cc * (l11 - c1 * (t10 * a1 + t11 * b1))
-            s12 = cc * (l12 - c1 * (t10 * a2 + t11 * b2))
-            s22 = cc * (l22 - c1 * (t20 * a2 + t21 * b2))
-            c00, c10, c20, c11, c21, c22 = chol3(s00, s01, s02, s11, s12, s22)
-            n0 = rng.standard_normal()
-            n1 = rng.standard_normal()
-            n2 = rng.standard_normal()
-            # χ²_ν*/ν* by the Wilson–Hilferty cube of a normal (module docstring)
-            wh = max(1.0 - wh_a + wh_b * rng.standard_normal(), 1e-3)
-            sc = 1.0 / math.sqrt(wh * wh * wh)
-            w0 = min(max(mc0 + sc * c00 * n0, lo[W_CX]), hi[W_CX])
-            w1 = min(max(mc1 + sc * (c10 * n0 + c11 * n1), lo[W_CYF]), hi[W_CYF])
-            w2 = min(max(mc2 + sc * (c20 * n0 + c21 * n1 + c22 * n2), lo[W_CYR]), hi[W_CYR])
-            w[i, W_CX] = w0
-            w[i, W_CYF] = w1
-            w[i, W_CYR] = w2
-            if act:
-                # eq. (19) with z = w − μ̂_{k|k−1}
-                z0 = w0 - m0
-                z1 = w1 - m1
-                z2 = w2 - m2
-                lam[i, L00] = l00 + c_upd * z0 * z0
-                lam[i, L01] = l01 + c_upd * z0 * z1
-                lam[i, L02] = l02 + c_upd * z0 * z2
-                lam[i, L11] = l11 + c_upd * z1 * z1
-                lam[i, L12] = l12 + c_upd * z1 * z2
-                lam[i, L22] = l22 + c_upd * z2 * z2
-                mu[i, W_CX] = min(max(m0 + g_post * z0, lo[W_CX]), hi[W_CX])
-                mu[i, W_CYF] = min(max(m1 + g_post * z1, lo[W_CYF]), hi[W_CYF])
-                mu[i, W_CYR] = min(max(m2 + g_post * z2, lo[W_CYR]), hi[W_CYR])
+            c00, c10, c20, c11, c21, c22 = chol3(
+                l00 - c1 * (t00 * a0 + t01 * b0), l01 - c1 * (t00 * a1 + t01 * b1),
+                l02 - c1 * (t00 * a2 + t01 * b2), l11 - c1 * (t10 * a1 + t11 * b1),
+                l12 - c1 * (t10 * a2 + t11 * b2), l22 - c1 * (t20 * a2 + t21 * b2))
+            n0 = nrm[i, D_W]
+            n1 = nrm[i, D_W + 1]
+            n2 = nrm[i, D_W + 2]
+            # χ²_ν*/ν* by the Wilson–Hilferty cube of a normal (module docstring); the draw is
+            # μ* + L_S n √(ν*/χ²) with L_S = √((ν̃ + maha) c1/ν*) L
+            wh = max(1.0 - wh_a + wh_b * nrm[i, D_CHI], 1e-3)
+            sc = math.sqrt((dof + maha) * c_scale / (wh * wh * wh))
+            w0 = min(max(mc0 + sc * c00 * n0, lo0), hi0)
+            w1 = min(max(mc1 + sc * (c10 * n0 + c11 * n1), lo1), hi1)
+            w2 = min(max(mc2 + sc * (c20 * n0 + c21 * n1 + c22 * n2), lo2), hi2)
+            # line 18 without the model-error noise: x_{k+1} = f + g w_k (eq. (9))
+            part[i, C_XN + VX] = f0 + ts * (dxx * w0 + dxyf * w1 + dxyr * w2)
+            part[i, C_XN + VY] = f1 + ts * (dyx * w0 + dyyf * w1 + dyyr * w2)
+            part[i, C_XN + YAW_RATE] = f2 + grx * w0 + gryf * w1 + gryr * w2
+            # eq. (19) with z = w − μ̂_{k|k−1}, then the forgetting (20) of Λ (c_upd = 0 and
+            # lam_f = 1 on inactive steps: statistics frozen)
+            zw0 = w0 - m0
+            zw1 = w1 - m1
+            zw2 = w2 - m2
+            part[i, C_LAM + L00] = lam_f * (l00 + c_upd * zw0 * zw0)
+            part[i, C_LAM + L01] = lam_f * (l01 + c_upd * zw0 * zw1)
+            part[i, C_LAM + L02] = lam_f * (l02 + c_upd * zw0 * zw2)
+            part[i, C_LAM + L11] = lam_f * (l11 + c_upd * zw1 * zw1)
+            part[i, C_LAM + L12] = lam_f * (l12 + c_upd * zw1 * zw2)
+            part[i, C_LAM + L22] = lam_f * (l22 + c_upd * zw2 * zw2)
+            mp0 = min(max(m0 + g_post * zw0, lo0), hi0)
+            mp1 = min(max(m1 + g_post * zw1, lo1), hi1)
+            mp2 = min(max(m2 + g_post * zw2, lo2), hi2)
+            part[i, C_MU + W_CX] = mp0
+            part[i, C_MU + W_CYF] = mp1
+            part[i, C_MU + W_CYR] = mp2
+            # for eq. (30): y − h − d μ̂_{k|k} − b_{k|k−1} and d Σ̂_{k|k} dᵀ with
+            # d Λ_{k|k} dᵀ = d Λ dᵀ + c_upd (d z_w)(d z_w)ᵀ
+            dm0 = mp0 - m0
+            dm1 = mp1 - m1
+            dm2 = mp2 - m2
+            part[i, C_EB] = z0 - (dxx * dm0 + dxyf * dm1 + dxyr * dm2)
+            part[i, C_EB + 1] = z1 - (dyx * dm0 + dyyf * dm1 + dyyr * dm2)
+            part[i, C_EB + 2] = z2
+            dz0 = dxx * zw0 + dxyf * zw1 + dxyr * zw2
+            dz1 = dyx * zw0 + dyyf * zw1 + dyyr * zw2
+            part[i, C_SB + PXX] = inv_c_post * (g00 + c_upd * dz0 * dz0)
+            part[i, C_SB + PXY] = inv_c_post * (g01 + c_upd * dz0 * dz1)
+            part[i, C_SB + PYY] = inv_c_post * (g11 + c_upd * dz1 * dz1)
+        if finish:
+            b_hat[k - 1, 0] = bh0
+            b_hat[k - 1, 1] = bh1
+            b_hat[k - 1, 2] = bh2
+        if last:
+            break
         if act:
-            gamma = g_post
-            nu = nu + 1.0
-        # ---- lines 6–10
-        lse = normalize_log_weights(logw, q)
-        neff = effective_sample_size(q)
+            gamma = g_post / lam_k    # (19a) then (20)
+            nu = lam_k * nu_post      # (19c) then (20)
+        # ---- lines 6–7 and 11–13 in one pass (moments about particle 0 for round-off)
+        if top == -math.inf:
+            for i in range(n_part):
+                logw[i] = 0.0
+            top = 0.0
+        xr0 = part[0, C_X + VX]
+        xr1 = part[0, C_X + VY]
+        xr2 = part[0, C_X + YAW_RATE]
+        mr0 = part[0, C_MU + W_CX]
+        mr1 = part[0, C_MU + W_CYF]
+        mr2 = part[0, C_MU + W_CYR]
+        c_lam = inv_c_post / lam_f    # Λ_{k|k}/(ν_{k|k} − 4) from the stored λ Λ_{k|k}
+        s = 0.0
+        s2 = 0.0
+        sx0 = sx1 = sx2 = 0.0
+        sxx00 = sxx01 = sxx02 = sxx11 = sxx12 = sxx22 = 0.0
+        sm0 = sm1 = sm2 = 0.0
+        smm00 = smm01 = smm02 = smm11 = smm12 = smm22 = 0.0
+        for i in range(n_part):
+            e = math.exp(logw[i] - top)
+            q[i] = e
+            s += e
+            s2 += e * e
+            d0 = part[i, C_X + VX] - xr0
+            d1 = part[i, C_X + VY] - xr1
+            d2 = part[i, C_X + YAW_RATE] - xr2
+            ed0 = e * d0
+            ed1 = e * d1
+            ed2 = e * d2
+            sx0 += ed0
+            sx1 += ed1
+            sx2 += ed2
+            sxx00 += ed0 * d0
+            sxx01 += ed0 * d1
+            sxx02 += ed0 * d2
+            sxx11 += ed1 * d1
+            sxx12 += ed1 * d2
+            sxx22 += ed2 * d2
+            d0 = part[i, C_MU + W_CX] - mr0
+            d1 = part[i, C_MU + W_CYF] - mr1
+            d2 = part[i, C_MU + W_CYR] - mr2
+            ed0 = e * d0
+            ed1 = e * d1
+            ed2 = e * d2
+            ec = e * c_lam
+            sm0 += ed0
+            sm1 += ed1
+            sm2 += ed2
+            smm00 += ed0 * d0 + ec * part[i, C_LAM + L00]
+            smm01 += ed0 * d1 + ec * part[i, C_LAM + L01]
+            smm02 += ed0 * d2 + ec * part[i, C_LAM + L02]
+            smm11 += ed1 * d1 + ec * part[i, C_LAM + L11]
+            smm12 += ed1 * d2 + ec * part[i, C_LAM + L12]
+            smm22 += ed2 * d2 + ec * part[i, C_LAM + L22]
+        inv_s = 1.0 / s
+        neff = s * s / s2
         ess[k] = neff
+        # eq. (42): weighted mean and covariance of x_k
+        mx0 = sx0 * inv_s
+        mx1 = sx1 * inv_s
+        mx2 = sx2 * inv_s
+        v00 = sxx00 * inv_s - mx0 * mx0
+        v01 = sxx01 * inv_s - mx0 * mx1
+        v02 = sxx02 * inv_s - mx0 * mx2
+        v11 = sxx11 * inv_s - mx1 * mx1
+        v12 = sxx12 * inv_s - mx1 * mx2
+        v22 = sxx22 * inv_s - mx2 * mx2
+        x_hat[k, VX] = xr0 + mx0
+        x_hat[k, VY] = xr1 + mx1
+        x_hat[k, YAW_RATE] = xr2 + mx2
+        x_var[k, VX] = v00
+        x_var[k, VY] = v11
+        x_var[k, YAW_RATE] = v22
+        # eq. (27a)–(27b) with the statistics S_{k|k}
+        mw0 = sm0 * inv_s
+        mw1 = sm1 * inv_s
+        mw2 = sm2 * inv_s
+        w_hat[k, W_CX] = mr0 + mw0
+        w_hat[k, W_CYF] = mr1 + mw1
+        w_hat[k, W_CYR] = mr2 + mw2
+        w_cov[k, 0, 0] = smm00 * inv_s - mw0 * mw0
+        w_cov[k, 0, 1] = w_cov[k, 1, 0] = smm01 * inv_s - mw0 * mw1
+        w_cov[k, 0, 2] = w_cov[k, 2, 0] = smm02 * inv_s - mw0 * mw2
+        w_cov[k, 1, 1] = smm11 * inv_s - mw1 * mw1
+        w_cov[k, 1, 2] = w_cov[k, 2, 1] = smm12 * inv_s - mw1 * mw2
+        w_cov[k, 2, 2] = smm22 * inv_s - mw2 * mw2
+        # cloud covariance through ∂h/∂x for the bias filter of lines 14–20
+        hx = accel_jacobian(x_hat[k, VX], x_hat[k, VY], x_hat[k, YAW_RATE], delta, sd, cd,
+                            om_f, om_r, ts, p)
+        x_unc[PXX], x_unc[PXY], x_unc[PYY], x_unc[PRR] = project_state_cov(
+            hx, v00, v01, v02, v11, v12, v22)
+        # ---- lines 8–10
+        for i in range(n_part):
+            q[i] *= inv_s
         if neff <= n_thr:
-            systematic_resample(q, rng.random(), idx)
+            systematic_resample(q, uniform(rng_state), idx)
             for i in range(n_part):
                 j = idx[i]
-                x_new[i] = x[j]
-                mu_new[i] = mu[j]
-                lam_new[i] = lam[j]
-                b_new[i] = b[j]
-                pb_new[i] = pb[j]
-                w_new[i] = w[j]
-                mt_new[i] = mt[j]
-            mt[:] = mt_new
-            x[:] = x_new
-            mu[:] = mu_new
-            lam[:] = lam_new
-            b[:] = b_new
-            pb[:] = pb_new
-            w[:] = w_new
-            q[:] = 1.0 / n_part
-            logw[:] = -math.log(n_part)
+                for c in range(N_COL):
+                    spare[i, c] = part[j, c]
+            part, spare = spare, part
+            for i in range(n_part):
+                q[i] = 1.0 / n_part
+                logw[i] = -log_n
             n_resampled += 1
         else:
+            shift = top + math.log(s)
             for i in range(n_part):
-                logw[i] -= lse
-        # ---- lines 11–13: eq. (42), (27)
-        weighted_state_moments(q, x, x_hat[k], x_var[k])
-        state_uncertainty(q, x, x_hat[k], delta, sd, cd, om_f, om_r, ts, p, x_unc)
-        inv_c = 1.0 / (nu - 4.0)    # E[Σ] = Λ/(ν − n_w − 1)
-        acc = np.zeros(12)
-        for i in range(n_part):
-            qi = q[i]
-            m0 = mu[i, W_CX]
-            m1 = mu[i, W_CYF]
-            m2 = mu[i, W_CYR]
-            acc[0] += qi * m0
-            acc[1] += qi * m1
-            acc[2] += qi * m2
-            acc[3] += qi * (inv_c * lam[i, L00] + m0 * m0)
-            acc[4] += qi * (inv_c * lam[i, L01] + m0 * m1)
-            acc[5] += qi * (inv_c * lam[i, L02] + m0 * m2)
-            acc[6] += qi * (inv_c * lam[i, L11] + m1 * m1)
-            acc[7] += qi * (inv_c * lam[i, L12] + m1 * m2)
-            acc[8] += qi * (inv_c * lam[i, L22] + m2 * m2)
-        for a in range(3):
-            w_hat[k, a] = acc[a]
-        pos = 3
-        for a in range(3):
-            for c in range(a, 3):
-                v = acc[pos] - acc[a] * acc[c]
-                w_cov[k, a, c] = v
-                w_cov[k, c, a] = v
-                pos += 1
-        # ---- lines 14–20: eq. (30), (20), (9), (29)
-        b_hat[k, 0] = 0.0
-        b_hat[k, 1] = 0.0
-        b_hat[k, 2] = 0.0
-        for i in range(n_part):
-            vx = x[i, VX]
-            vy = x[i, VY]
-            r = x[i, YAW_RATE]
-            f0 = mt[i, 0]
-            f1 = mt[i, 1]
-            f2 = mt[i, 2]
-            ax = mt[i, 3]
-            ay = mt[i, 4]
-            dxx = mt[i, 5]
-            dxyf = mt[i, 6]
-            dxyr = mt[i, 7]
-            dyx = mt[i, 8]
-            dyyf = mt[i, 9]
-            dyyr = mt[i, 10]
-            grx = mt[i, 11]
-            gryf = mt[i, 12]
-            gryr = mt[i, 13]
-            l00 = lam[i, L00]
-            l01 = lam[i, L01]
-            l02 = lam[i, L02]
-            l11 = lam[i, L11]
-            l12 = lam[i, L12]
-            l22 = lam[i, L22]
-            a0 = dxx * l00 + dxyf * l01 + dxyr * l02
-            a1 = dxx * l01 + dxyf * l11 + dxyr * l12
-            a2 = dxx * l02 + dxyf * l12 + dxyr * l22
-            b0 = dyx * l00 + dyyf * l01 + dyyr * l02
-            b1 = dyx * l01 + dyyf * l11 + dyyr * l12
-            b2 = dyx * l02 + dyyf * l12 + dyyr * l22
-            m0 = mu[i, W_CX]
-            m1 = mu[i, W_CYF]
-            m2 = mu[i, W_CYR]
-            if bias_on[k]:
-                bias_update(b[i], pb[i],
-                            y0 - ax - (dxx * m0 + dxyf * m1 + dxyr * m2) - b[i, M_AX],
-                            y1 - ay - (dyx * m0 + dyyf * m1 + dyyr * m2) - b[i, M_AY],
-                            y2 - r - b[i, M_YAW_RATE],
-                            inv_c * (a0 * dxx + a1 * dxyf + a2 * dxyr),
-                            inv_c * (b0 * dxx + b1 * dxyf + b2 * dxyr),
-                            inv_c * (b0 * dyx + b1 * dyyf + b2 * dyyr), r_pk, x_unc)
-            qi = q[i]
-            b_hat[k, 0] += qi * b[i, 0]
-            b_hat[k, 1] += qi * b[i, 1]
-            b_hat[k, 2] += qi * b[i, 2]
-            if act:
-                for a in range(N_LAM):
-                    lam[i, a] *= forgetting
-            w0 = w[i, W_CX]
-            w1 = w[i, W_CYF]
-            w2 = w[i, W_CYR]
-            x[i, VX] = f0 + ts * (dxx * w0 + dxyf * w1 + dxyr * w2)
-            x[i, VY] = f1 + ts * (dyx * w0 + dyyf * w1 + dyyr * w2)
-            x[i, YAW_RATE] = f2 + grx * w0 + gryf * w1 + gryr * w2
-            if me_vx:
-                x[i, VX] += ts * model_error[VX] * rng.standard_normal()
-            if me_lat:
-                x[i, VY] += ts * model_error[VY] * rng.standard_normal()
-                x[i, YAW_RATE] += ts * model_error[YAW_RATE] * rng.standard_normal()
-            if bias_on[k]:
-                for a in range(N_PB):
-                    pb[i, a] += q_pk[a]
-        if act:
-            gamma = gamma / forgetting
-            nu = forgetting * nu
+                logw[i] -= shift
+        ts_prev = ts
+    if n_resampled % 2 == 1:
+        # the caller's array is the other buffer after an odd number of swaps
+        spare[:, :] = part
     shared[0] = gamma
     shared[1] = nu
     return n_resampled
