@@ -165,6 +165,7 @@ class Pipeline:
         self.fused = ReferenceFilter(b.wheel_radius, b.lf, b.lr, self._xw, self._yw,
                                      self.config.reference)
         self._prev = np.array([np.nan, 0.0])  # (t, yaw rate) of the previous sample, for ṙ
+        self._fused_is_reference = True  # the fused filter has not diverged from the plain one
 
     def reset(self) -> None:
         """Forget every stage's state."""
@@ -175,6 +176,7 @@ class Pipeline:
         if self.corner is not None:
             self.corner.reset()
         self._prev = np.array([np.nan, 0.0])
+        self._fused_is_reference = True
 
     def _yaw_acceleration(self, t: np.ndarray, r: np.ndarray) -> np.ndarray:
         """Backward difference of the gyro across chunk boundaries (0 at the first sample)."""
@@ -269,16 +271,25 @@ class Pipeline:
             # (docs/results.md) and the wheel speeds already carry the information. The
             # corner KF's transport term takes v_y from the plain reference filter (the
             # no-sideslip approximation fails when the car slides: 4–5 % v_x in RWD spins).
+            start = self.reference.snapshot() if self._fused_is_reference else ()
             ref = self.reference.advance(u.t, u.omega, u.torque, mu_x_c, axle_slip, res["f_x"],
                                          res["f_y"], u.yaw_rate, u.delta)
             out = self._corners(u, res, mu_x_c, ref)
             vx_corner = self._fuse_corners(out, u, res, ref["v"])
             p = self.config.reference
             all_slip = out.high_slip.sum(axis=1) >= 3
-            extra = np.where(all_slip, vx_corner, np.nan)[:, None]
-            var = np.where(all_slip, p.sigma_corner_slip**2, np.nan)[:, None]
-            vel = self.fused.advance(u.t, u.omega, u.torque, mu_x_c, axle_slip, res["f_x"],
-                                     res["f_y"], u.yaw_rate, u.delta, extra, var)
+            if self._fused_is_reference and not all_slip.any():
+                # Until the first corner measurement the fused filter is the plain one, bit
+                # for bit (same kernel, inputs and state): its run is skipped.
+                vel = ref
+            else:
+                if self._fused_is_reference:
+                    self.fused.restore(start)
+                    self._fused_is_reference = False
+                extra = np.where(all_slip, vx_corner, np.nan)[:, None]
+                var = np.where(all_slip, p.sigma_corner_slip**2, np.nan)[:, None]
+                vel = self.fused.advance(u.t, u.omega, u.torque, mu_x_c, axle_slip, res["f_x"],
+                                         res["f_y"], u.yaw_rate, u.delta, extra, var)
             v, sig, bias = vel["v"], vel["sigma"], vel["bias"][:, 0]
         else:
             vel = self.reference.advance(u.t, u.omega, u.torque, mu_x_c, axle_slip, res["f_x"],

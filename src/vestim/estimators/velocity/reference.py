@@ -369,6 +369,15 @@ class ReferenceFilter:
         self._hist = np.zeros((self.params.window, 5))
         self._state = np.zeros(7)
 
+    def snapshot(self) -> tuple[np.ndarray, ...]:
+        """Copies of the filter's state (x, P, ω history, bookkeeping), for :meth:`restore`."""
+        return (self._x.copy(), self._P.copy(), self._hist.copy(), self._state.copy())
+
+    def restore(self, snap: tuple[np.ndarray, ...]) -> None:
+        """Continue from a :meth:`snapshot` (of this filter or of one with the same params)."""
+        for own, saved in zip((self._x, self._P, self._hist, self._state), snap, strict=True):
+            own[...] = saved
+
     def advance(self, t: np.ndarray, omega: np.ndarray, torque: np.ndarray, mu_x: np.ndarray,
                 axle_slip: np.ndarray, f_x: np.ndarray, f_y: np.ndarray, yaw_rate: np.ndarray,
                 delta: np.ndarray,
