@@ -14,6 +14,7 @@ import time
 import numpy as np
 import pandas as pd
 
+from _timing import best_of
 from vestim.constants import CORNERS
 from vestim.estimators.force import ForceConfig, ForceEstimator
 from vestim.estimators.force.longitudinal import METHODS, LongitudinalEstimator
@@ -26,15 +27,6 @@ def tile(log: pd.DataFrame, n: int) -> pd.DataFrame:
     big = pd.concat([log] * reps, ignore_index=True).iloc[:n].copy()
     big["t"] = np.arange(n) * 0.005
     return big
-
-
-def best_of(fn, repeats: int = 3) -> float:
-    best = float("inf")
-    for _ in range(repeats):
-        t0 = time.perf_counter()
-        fn()
-        best = min(best, time.perf_counter() - t0)
-    return best
 
 
 def main() -> None:
@@ -53,13 +45,13 @@ def main() -> None:
             est.reset()
             est.advance(t, omega, torque)
 
-        print(f"  {method:7s} {best_of(run):6.3f} s")
+        print(f"  {method:7s} {best_of(run)[0]:6.3f} s")
     full = ForceEstimator(veh, ForceConfig())
     full.run(log)
     print("full force stage (ukf + lateral UKF + normal), by log length:")
     for n in (72_000, 240_000, 720_000):
         part = hour.iloc[:n]
-        print(f"  {n:8d} samples  {best_of(lambda part=part: full.run(part)):6.3f} s")
+        print(f"  {n:8d} samples  {best_of(lambda part=part: full.run(part))[0]:6.3f} s")
     est = ForceEstimator(veh)
     rows = log.to_dict("records")
     est.step(rows[0])

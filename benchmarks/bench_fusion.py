@@ -16,25 +16,14 @@ and the batch eq. (13) solver alone.
 from __future__ import annotations
 
 import time
-from collections.abc import Callable
 
 import numpy as np
 
+from _timing import best_of
 from vestim.estimators.fusion import FUSION_METHODS, FusionParams, confidence_bounds, fuse, solve_confidences
 
 N_HOUR = 720_000
 TARGET_US = 20.0
-
-
-def best_of(fn: Callable[[], object], repeats: int = 3) -> tuple[float, float]:
-    """Best wall-clock and process-CPU seconds of ``repeats`` calls."""
-    wall = cpu = float("inf")
-    for _ in range(repeats):
-        t0, c0 = time.perf_counter(), time.process_time()
-        fn()
-        wall = min(wall, time.perf_counter() - t0)
-        cpu = min(cpu, time.process_time() - c0)
-    return wall, cpu
 
 
 def inputs(n: int, seed: int = 0) -> tuple[np.ndarray, np.ndarray]:

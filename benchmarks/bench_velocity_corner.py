@@ -21,12 +21,12 @@ from __future__ import annotations
 import dataclasses
 import sys
 import time
-from collections.abc import Callable
 from functools import partial
 
 import numpy as np
 import pandas as pd
 
+from _timing import best_of
 from vestim.constants import CORNERS
 from vestim.design.calibration import fit_lugre
 from vestim.estimators.force import ForceEstimator
@@ -56,17 +56,6 @@ def tile(inp: CornerVelocityInput, n: int) -> CornerVelocityInput:
     return CornerVelocityInput(
         t=np.arange(n) * 0.005, omega=rep(inp.omega), mu_x=rep(inp.mu_x), a_xt=rep(inp.a_xt),
         delta=rep(inp.delta), yaw_rate=rep(inp.yaw_rate), mu_y=rep(inp.mu_y), a_yt=rep(inp.a_yt))
-
-
-def best_of(fn: Callable[[], object], repeats: int = 3) -> tuple[float, float]:
-    """(best wall time, best process CPU time) over ``repeats`` calls, s."""
-    wall = cpu = float("inf")
-    for _ in range(repeats):
-        t0, c0 = time.perf_counter(), time.process_time()
-        fn()
-        wall = min(wall, time.perf_counter() - t0)
-        cpu = min(cpu, time.process_time() - c0)
-    return wall, cpu
 
 
 def speed() -> None:
