@@ -38,14 +38,16 @@ def main() -> None:
     peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024**2
     print(f"peak resident memory of this process: {peak:.2f} GiB")
     rows = log.to_dict("records")
-    pipe.reset()
-    for r in rows[:50]:
-        pipe.step(r)
-    t0 = time.perf_counter()
-    for r in rows[50:1050]:
-        pipe.step(r)
-    print(f"step(): {(time.perf_counter() - t0) / 1000 * 1e6:.0f} us per sample (four corners)")
-
+    best = float("inf")
+    for _ in range(5):  # best of 5 passes of 1000 samples (the VM's timer noise is large)
+        pipe.reset()
+        for r in rows[:50]:
+            pipe.step(r)
+        t0 = time.perf_counter()
+        for r in rows[50:1050]:
+            pipe.step(r)
+        best = min(best, (time.perf_counter() - t0) / 1000)
+    print(f"step(): {best * 1e6:.0f} us per sample (four corners, best of 5 x 1000)")
 
 if __name__ == "__main__":
     main()

@@ -27,6 +27,7 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
+from vestim import online
 from vestim.constants import CORNERS
 from vestim.errors import VestimError
 from vestim.estimators.force import ForceConfig, ForceEstimator
@@ -166,6 +167,9 @@ class Pipeline:
                                      self.config.reference)
         self._prev = np.array([np.nan, 0.0])  # (t, yaw rate) of the previous sample, for ṙ
         self._fused_is_reference = True  # the fused filter has not diverged from the plain one
+        self._step_args: tuple[Any, ...] | None = None  # compiled step's arguments (cache)
+        self._step_names: list[str] = []
+        self._step_rates: tuple[bool, bool] | None = None  # rate channels last noted
 
     def reset(self) -> None:
         """Forget every stage's state."""
@@ -177,6 +181,8 @@ class Pipeline:
             self.corner.reset()
         self._prev = np.array([np.nan, 0.0])
         self._fused_is_reference = True
+        self._step_args = None
+        self._step_rates = None
 
     def _yaw_acceleration(self, t: np.ndarray, r: np.ndarray) -> np.ndarray:
         """Backward difference of the gyro across chunk boundaries (0 at the first sample)."""
@@ -360,7 +366,52 @@ class Pipeline:
         return pd.DataFrame(block.T, columns=names, copy=False)
 
     def step(self, sample: Mapping[str, float]) -> dict[str, float]:
-        """Advance by one sample (mapping of the log's column names); return that row."""
+        """Advance by one sample (mapping of the log's column names); return that row.
+
+        Samples with wheel torques and ``az`` in the common configurations go through one
+        compiled call (:mod:`vestim.online`); others through the general path. Both give
+        the batch result.
+        """
+        row = self._fast_step(sample)
+        if row is not None:
+            return row
+        self._step_args = None  # the general path moves state the compiled one caches
         u = self.force._inputs_from_sample(sample)
         cols = columns_from_groups(self._groups(u.t, self._advance(u)))
         return {k: float(v[0]) for k, v in cols.items()}
+
+    def _fast_step(self, sample: Mapping[str, float]) -> dict[str, float] | None:
+        """One sample through :func:`vestim.online.step_kernel`, or None if not covered."""
+        if self._step_args is None:
+            self._step_args = online.build_step(self)
+            if self._step_args is None:
+                return None
+            per_corner = ("vx", "vy", "vxt", "vyt", "slip_ratio", "slip_angle", "fx", "fy", "fz",
+                          "mu_x", "mu_y", "sigma_fx", "sigma_fy")
+            self._step_names = ["t", "vx", "vy", "sigma_vx", "sigma_vy",
+                                *(f"{q}_{c}" for q in per_corner for c in CORNERS),
+                                "roll", "pitch", "bias_ax"]
+        try:
+            vec = [float(sample[k]) for k in online.SAMPLE_KEYS[:13]]  # t … yaw_rate
+            vec += [float(sample.get("roll_rate", np.nan)),
+                    float(sample.get("pitch_rate", np.nan)),
+                    float(sample["delta_fl"]), float(sample["delta_fr"])]
+        except KeyError:  # no torques, az or per-wheel steering: the general path
+            return None
+        s = np.array(vec)
+        out = np.empty(len(self._step_names))
+        args = self._step_args
+        online.step_kernel(s, out, *args)
+        pstate = args[30]
+        self._prev = pstate[:2]  # a view: the general path replaces it, never writes into it
+        self._fused_is_reference = bool(pstate[2])
+        if self.corner is not None and self.config.velocity == "fused":
+            self.corner._t_last = vec[0]
+        rates = ("roll_rate" in sample, "pitch_rate" in sample)
+        if rates != self._step_rates:
+            self._step_rates = rates
+            self.force.note_sources({
+                "torque_source": "measured", "az_source": "measured",
+                "roll_source": "rate" if rates[0] else "quasi_static",
+                "pitch_source": "rate" if rates[1] else "quasi_static"})
+        return dict(zip(self._step_names, out.tolist(), strict=True))

@@ -282,6 +282,11 @@ class ForceEstimator:
         """
         return {k: next(iter(v)) if len(v) == 1 else "mixed" for k, v in self._seen.items()}
 
+    def note_sources(self, sources: Mapping[str, str]) -> None:
+        """Record where a chunk's optional inputs came from (see :attr:`input_sources`)."""
+        for key, value in sources.items():
+            self._seen.setdefault(key, set()).add(value)
+
     @property
     def torque_source(self) -> str | None:
         """"measured", "chassis" or "mixed" since the last reset; None before any sample."""
@@ -299,8 +304,7 @@ class ForceEstimator:
         n = u.t.shape[0]
         b = self.vehicle.body
         cfg = self.config
-        for key, value in u.sources.items():
-            self._seen.setdefault(key, set()).add(value)
+        self.note_sources(u.sources)
         roll = np.empty(n)
         pitch = np.empty(n)
         nrm.attitude_kernel(u.t, u.ax, u.ay, u.roll_rate, u.pitch_rate, cfg.roll_gain,

@@ -1,0 +1,337 @@
+"""Compiled online step of the default pipeline: one sample through every stage in one call.
+
+:meth:`vestim.pipeline.Pipeline.step` feeds the stages one sample at a time through the
+same compiled kernels as :meth:`~vestim.pipeline.Pipeline.run`, but a call costs about a
+millisecond of Python glue (a dozen kernel dispatches and NumPy calls on one-sample
+arrays). :func:`step_kernel` is that glue compiled: it calls the same kernels
+(attitude, longitudinal UKF, load split, lateral UKF, reference filters, LuGre corner
+KF, fixed or adaptive axle fusion) on the same state arrays, with the NumPy glue of
+:meth:`ForceEstimator.advance` and ``Pipeline._advance`` written out for one sample, so
+the two paths give the same numbers (tested to 1e-12 against ``run``).
+
+It covers the configurations an online user runs: force ``ukf``, normal loads
+``dynamic`` or ``static``, velocity ``fused`` or ``reference``, fusion ``axle`` or
+``adaptive``, and samples with wheel torques and ``az``; any other configuration or
+sample takes the general path. The per-sample equations are those cited in
+:mod:`vestim.estimators.force.estimator`, :mod:`vestim.estimators.force.normal` and
+:mod:`vestim.pipeline`.
+"""
+
+from __future__ import annotations
+
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+from numba import njit
+
+from vestim.estimators.force.lateral import lateral_kernel, split_weights
+from vestim.estimators.force.longitudinal import ukf_kernel
+from vestim.estimators.force.normal import attitude_kernel
+from vestim.estimators.fusion.axle import adaptive_axle_kernel, fixed_axle_kernel
+from vestim.estimators.velocity.lugre_kf import KFParams, lugre_kf_kernel
+from vestim.estimators.velocity.reference import reference_kernel
+from vestim.models.kinematics import _corner_acc, _rotate, _transport
+
+if TYPE_CHECKING:
+    from vestim.pipeline import Pipeline
+
+_JIT: dict[str, Any] = {"cache": True, "error_model": "numpy"}
+
+# Sample vector layout.
+S_T, S_OMEGA, S_TORQUE, S_AX, S_AY, S_AZ, S_R, S_P, S_Q, S_DELTA = 0, 1, 5, 9, 10, 11, 12, 13, 14, 15
+N_SAMPLE = 17
+SAMPLE_KEYS = ("t", "omega_fl", "omega_fr", "omega_rl", "omega_rr", "torque_fl", "torque_fr",
+               "torque_rl", "torque_rr", "ax", "ay", "az", "yaw_rate", "roll_rate",
+               "pitch_rate")
+
+
+@njit(**_JIT)
+def _slip_ratio(omega: np.ndarray, vxt: np.ndarray, radius: float, out: np.ndarray) -> None:
+    """kinematics.slip_ratio for one sample (eps 0.1 m/s)."""
+    for i in range(4):
+        rw = radius * omega[0, i]
+        den = max(abs(rw), abs(vxt[0, i]))
+        out[0, i] = (rw - vxt[0, i]) / den if den > 0.1 else 0.0
+
+
+@njit(**_JIT)
+def step_kernel(s: np.ndarray, out: np.ndarray, fprm: np.ndarray, dynamic: bool,
+                att: np.ndarray, lon_prm: np.ndarray, lon_wm: np.ndarray, lon_wc: np.ndarray,
+                lon_x: np.ndarray, lon_P: np.ndarray, lon_ht: np.ndarray, lon_hw: np.ndarray,
+                xw: np.ndarray, yw: np.ndarray, q_lat: np.ndarray, r_lat: np.ndarray,
+                w4: np.ndarray, c4: np.ndarray, tau4: float, lat_x: np.ndarray,
+                lat_P: np.ndarray, lat_state: np.ndarray,
+                ref_prm: np.ndarray, ref_x: np.ndarray, ref_P: np.ndarray, ref_hist: np.ndarray,
+                ref_state: np.ndarray, fused: bool, fus_x: np.ndarray, fus_P: np.ndarray,
+                fus_hist: np.ndarray, fus_state: np.ndarray, pstate: np.ndarray,
+                kf_prm: np.ndarray, kf_q: np.ndarray, kf_qh: np.ndarray, kf_p0: np.ndarray,
+                kf_window: int, kf_ukf: bool, kf_wm: np.ndarray, kf_wc: np.ndarray,
+                kf_tau: float, kf_x: np.ndarray, kf_P: np.ndarray, kf_hold: np.ndarray,
+                kf_acc: np.ndarray, kf_stats: np.ndarray, kf_wbuf: np.ndarray,
+                kf_tbuf: np.ndarray, kf_ring: np.ndarray, adaptive: bool,
+                fusion_prm: np.ndarray) -> None:
+    """One sample ``s`` (layout :data:`SAMPLE_KEYS` + δ_fl, δ_fr) through the pipeline; the
+    output row (the column order of ``Pipeline.run``) is written to ``out``.
+
+    ``fprm`` = [roll_gain, pitch_gain, c_roll, c_pitch, m, L, h, h_pc, h_rc, k_θ, c_θ, k_φ,
+    c_φ, l_f, l_r, roll share front, t_f, t_r, f_rr, R, drag coefficient, I_z, load
+    exponent, slip scale, C_y/F_z]; ``lon_prm`` = [I_w, R, r_ω, r_T, q_acc, q_acc_high,
+    q_T, ω̇_high, p0_acc, τ]; ``kf_prm`` = [κ, σ0, σ1, σ2, r, r_high, step_ref, λ_u, λ_l,
+    β_e, ω̇_th, min speed, μ release]; ``pstate`` = [t_prev, r_prev, fused filter still
+    identical to the plain one (1/0)]; ``fusion_prm`` = [η_front, w_s, w_range, ρ, λ_th].
+    """
+    t1 = s[S_T:S_T + 1]
+    omega = s[S_OMEGA:S_OMEGA + 4].reshape(1, 4)
+    torque = s[S_TORQUE:S_TORQUE + 4].reshape(1, 4)
+    ax, ay, az, r = s[S_AX], s[S_AY], s[S_AZ], s[S_R]
+    p, q = s[S_P], s[S_Q]
+    r1 = s[S_R:S_R + 1]
+    delta = np.zeros((1, 4))
+    delta[0, 0] = s[S_DELTA]
+    delta[0, 1] = s[S_DELTA + 1]
+    radius = fprm[19]
+    # --- force stage (ForceEstimator.advance) ---
+    roll = np.empty(1)
+    pitch = np.empty(1)
+    attitude_kernel(t1, s[S_AX:S_AX + 1], s[S_AY:S_AY + 1], s[S_P:S_P + 1], s[S_Q:S_Q + 1],
+                    fprm[0], fprm[1], fprm[2], fprm[3], att, roll, pitch)
+    cp, sp = np.cos(roll[0]), np.sin(roll[0])
+    ct, st = np.cos(pitch[0]), np.sin(pitch[0])
+    f_y = cp * ay - sp * az
+    tmp_z = sp * ay + cp * az
+    f_x = ct * ax + st * tmp_z
+    f_z = -st * ax + ct * tmp_z
+    m, wb, h, h_pc, h_rc = fprm[4], fprm[5], fprm[6], fprm[7], fprm[8]
+    k_th, c_th, k_ph, c_ph = fprm[9], fprm[10], fprm[11], fprm[12]
+    lf, lr, sf, tr_f, tr_r = fprm[13], fprm[14], fprm[15], fprm[16], fprm[17]
+    static_pitch = -m * (h - h_pc) * f_x
+    static_roll = m * (h - h_rc) * (f_y + f_z * np.sin(roll[0]))
+    m_pitch, m_roll = static_pitch, static_roll
+    if dynamic:
+        if not np.isnan(q):
+            m_pitch = k_th * pitch[0] + c_th * q
+        if not np.isnan(p):
+            m_roll = k_ph * roll[0] + c_ph * p
+    dz_long = (-m * h_pc * f_x + m_pitch) / wb
+    fzf = m * f_z * lr / wb + dz_long
+    fzr = m * f_z * lf / wb - dz_long
+    dlat_f = (m * lr / wb * h_rc * f_y + sf * m_roll) / tr_f
+    dlat_r = (m * lf / wb * h_rc * f_y + (1 - sf) * m_roll) / tr_r
+    fz = np.empty((1, 4))
+    fz[0, 0] = max(0.5 * fzf - dlat_f, 0.0)
+    fz[0, 1] = max(0.5 * fzf + dlat_f, 0.0)
+    fz[0, 2] = max(0.5 * fzr - dlat_r, 0.0)
+    fz[0, 3] = max(0.5 * fzr + dlat_r, 0.0)
+    teff = np.empty((1, 4))
+    for i in range(4):
+        rr = fprm[18] * radius * fz[0, i]
+        teff[0, i] = torque[0, i] - rr * min(max(omega[0, i] / 3.0, -1.0), 1.0)
+    fx = np.empty((1, 4))
+    sig_fx = np.full((1, 4), np.nan)
+    high = np.empty((1, 4), dtype=np.bool_)
+    ukf_kernel(t1, omega, teff, lon_prm[0], lon_prm[1], lon_prm[2], lon_prm[3], lon_prm[4],
+               lon_prm[5], lon_prm[6], lon_prm[7], lon_prm[8], lon_wm, lon_wc, lon_prm[9],
+               lon_x, lon_P, lon_ht, lon_hw, fx, sig_fx, high)
+    w_mean = 0.25 * (omega[0, 0] + omega[0, 1] + omega[0, 2] + omega[0, 3])
+    drag = np.empty(1)
+    drag[0] = fprm[20] * (radius * w_mean) ** 2
+    weights = split_weights(fz, omega, torque, r1, radius, yw, fprm[22], fprm[23])
+    fy = np.empty((1, 4))
+    sig_fy = np.empty((1, 4))
+    fxa = np.empty(1)
+    fya = np.empty(1)
+    fxa[0] = f_x
+    fya[0] = f_y
+    lateral_kernel(t1, fx, delta, weights, fxa, fya, r1, drag, m, fprm[21], xw, yw, q_lat,
+                   r_lat, w4, c4, tau4, lat_x, lat_P, lat_state, fy, sig_fy)
+    # --- velocity stage (Pipeline._advance) ---
+    mu_x = np.empty((1, 4))
+    mu_y = np.empty((1, 4))
+    for i in range(4):
+        mu_x[0, i] = fx[0, i] / fz[0, i] if fz[0, i] > 1.0 else 0.0
+        mu_y[0, i] = fy[0, i] / fz[0, i] if fz[0, i] > 1.0 else 0.0
+    axle = np.empty((1, 2))
+    for a in range(2):
+        i, j = 2 * a, 2 * a + 1
+        c = fprm[24] * (fz[0, i] + fz[0, j])
+        axle[0, a] = -(fy[0, i] + fy[0, j]) / c if c > 1.0 else np.nan
+    none_v = np.full((1, 0), np.nan)
+    v_ref = np.empty((1, 2))
+    sig_ref = np.empty((1, 2))
+    bias_ref = np.empty((1, 3))
+    trust = np.empty((1, 4))
+    same = fused and pstate[2] == 1.0
+    if same:
+        snap_x, snap_P = ref_x.copy(), ref_P.copy()
+        snap_h, snap_s = ref_hist.copy(), ref_state.copy()
+    reference_kernel(t1, omega, torque, mu_x, axle, fxa, fya, r1, delta, none_v, none_v,
+                     radius, lf, lr, xw, yw, ref_prm, ref_x, ref_P, ref_hist, ref_state,
+                     v_ref, sig_ref, bias_ref, trust)
+    v = v_ref
+    sig = sig_ref
+    bias = bias_ref
+    if fused:
+        dt = t1[0] - pstate[0]
+        yaw_acc = np.empty(1)
+        yaw_acc[0] = (r - pstate[1]) / dt if dt == dt and dt != 0.0 else 0.0
+        if np.isnan(yaw_acc[0]):
+            yaw_acc[0] = 0.0
+        pstate[0] = t1[0]
+        pstate[1] = r
+        axc = np.empty(1)
+        ayc = np.empty(1)
+        axc[0] = f_x - bias_ref[0, 0]
+        ayc[0] = f_y - bias_ref[0, 1]
+        ax_i, ay_i = _corner_acc(axc, ayc, r1, yaw_acc, xw, yw)
+        a_xt = np.empty((1, 4))
+        a_yt = np.empty((1, 4))
+        _rotate(ax_i.reshape(-1), ay_i.reshape(-1), delta.reshape(-1), 1.0, a_xt.reshape(-1),
+                a_yt.reshape(-1))
+        vg = np.empty(1)
+        vg[0] = radius * w_mean
+        vyr = v_ref[0, 1:2].copy()
+        vx_i, vy_i = _transport(vg, vyr, r1, xw, yw, 1.0)
+        vxt_g = np.empty((1, 4))
+        vyt_in = np.empty((1, 4))
+        _rotate(vx_i.reshape(-1), vy_i.reshape(-1), delta.reshape(-1), 1.0, vxt_g.reshape(-1),
+                vyt_in.reshape(-1))
+        hint = np.zeros((1, 4), dtype=np.bool_)
+        k_vxt = np.empty((1, 4))
+        k_sig = np.empty((1, 4))
+        k_high = np.empty((1, 4), dtype=np.bool_)
+        k_vr = np.empty((1, 4))
+        k_z = np.empty((1, 4))
+        k_zd = np.empty((1, 4))
+        lugre_kf_kernel(t1, omega, mu_x, a_xt, a_yt, delta, r1, hint, vyt_in, radius,
+                        kf_prm[0], kf_prm[1], kf_prm[2], kf_prm[3], xw, kf_q, kf_prm[4], kf_qh,
+                        kf_prm[5], kf_p0, kf_prm[6], kf_prm[7], kf_prm[8], kf_prm[9],
+                        kf_prm[10], kf_prm[11], kf_prm[12], kf_window, kf_ukf, kf_wm, kf_wc,
+                        kf_tau, kf_x, kf_P, kf_hold, kf_acc, kf_stats, kf_wbuf, kf_tbuf,
+                        kf_ring, k_vxt, k_sig, k_high, k_vr, k_z, k_zd)
+        # Fusion (Pipeline._fuse_corners): slip against the reference speed.
+        vxr_i, vyr_i = _transport(v_ref[0, 0:1].copy(), vyr, r1, xw, yw, 1.0)
+        vxt_r = np.empty((1, 4))
+        vyt_r = np.empty((1, 4))
+        _rotate(vxr_i.reshape(-1), vyr_i.reshape(-1), delta.reshape(-1), 1.0, vxt_r.reshape(-1),
+                vyt_r.reshape(-1))
+        slip = np.empty((1, 4))
+        _slip_ratio(omega, vxt_r, radius, slip)
+        vx_b = np.empty((1, 4))
+        vy_b = np.empty((1, 4))
+        _rotate(k_vxt.reshape(-1), np.zeros(4), delta.reshape(-1), -1.0, vx_b.reshape(-1),
+                vy_b.reshape(-1))
+        phi = np.empty((1, 4))
+        for i in range(4):
+            phi[0, i] = vx_b[0, i] + r * yw[i]
+        vx_f = np.empty(1)
+        fw = np.empty((1, 4))
+        if adaptive:
+            adaptive_axle_kernel(phi, slip, fusion_prm[1], fusion_prm[2], fusion_prm[3],
+                                 fusion_prm[4], vx_f, fw)
+        else:
+            fixed_axle_kernel(phi, fusion_prm[0], vx_f, fw)
+        n_high = 0
+        for i in range(4):
+            n_high += 1 if k_high[0, i] else 0
+        if not (same and n_high < 3):
+            if same:
+                fus_x[:] = snap_x
+                fus_P[:, :] = snap_P
+                fus_hist[:, :] = snap_h
+                fus_state[:] = snap_s
+                pstate[2] = 0.0
+            extra = np.full((1, 1), np.nan)
+            var = np.full((1, 1), np.nan)
+            if n_high >= 3:
+                extra[0, 0] = vx_f[0]
+                var[0, 0] = ref_prm[23] ** 2
+            v = np.empty((1, 2))
+            sig = np.empty((1, 2))
+            bias = np.empty((1, 3))
+            reference_kernel(t1, omega, torque, mu_x, axle, fxa, fya, r1, delta, extra, var,
+                             radius, lf, lr, xw, yw, ref_prm, fus_x, fus_P, fus_hist, fus_state,
+                             v, sig, bias, trust)
+    # --- outputs (Pipeline._groups order) ---
+    vx_o, vy_o = _transport(v[0, 0:1].copy(), v[0, 1:2].copy(), r1, xw, yw, 1.0)
+    vxt = np.empty((1, 4))
+    vyt = np.empty((1, 4))
+    _rotate(vx_o.reshape(-1), vy_o.reshape(-1), delta.reshape(-1), 1.0, vxt.reshape(-1),
+            vyt.reshape(-1))
+    sr = np.empty((1, 4))
+    _slip_ratio(omega, vxt, radius, sr)
+    k = 0
+    out[k] = t1[0]
+    out[k + 1] = v[0, 0]
+    out[k + 2] = v[0, 1]
+    out[k + 3] = sig[0, 0]
+    out[k + 4] = sig[0, 1]
+    k = 5
+    for block in (vx_o, vy_o, vxt, vyt, sr):
+        for i in range(4):
+            out[k + i] = block[0, i]
+        k += 4
+    for i in range(4):
+        out[k + i] = np.arctan(vyt[0, i] / vxt[0, i]) if abs(vxt[0, i]) > 0.5 else 0.0
+    k += 4
+    for block in (fx, fy, fz, mu_x, mu_y, sig_fx, sig_fy):
+        for i in range(4):
+            out[k + i] = block[0, i]
+        k += 4
+    out[k] = roll[0]
+    out[k + 1] = pitch[0]
+    out[k + 2] = bias[0, 0]
+
+
+def build_step(pipe: Pipeline) -> tuple[Any, ...] | None:
+    """The state and parameter arguments of :func:`step_kernel` for ``pipe`` as it is now
+    (its arrays, shared, not copied), or None if its configuration is not covered."""
+    cfg = pipe.config
+    if (cfg.force != "ukf" or cfg.velocity not in ("fused", "reference")
+            or cfg.fusion not in ("axle", "adaptive")):
+        return None
+    fe = pipe.force
+    veh = pipe.vehicle
+    b, s, a = veh.body, veh.suspension, veh.aerodynamics
+    fc = fe.config
+    lp = fc.lateral
+    fprm = np.array([fc.roll_gain, fc.pitch_gain, fe._c_roll, fe._c_pitch, b.mass, b.wheelbase,
+                     b.cg_height, s.pitch_center_height, b.roll_center_height,
+                     s.pitch_stiffness, s.pitch_damping, s.roll_stiffness, s.roll_damping,
+                     b.lf, b.lr, s.roll_stiffness_front_share, b.track_f, b.track_r,
+                     a.rolling_resistance, b.wheel_radius, fe._drag_coef, b.yaw_inertia,
+                     lp.load_exponent, lp.slip_scale, pipe._cy_norm])
+    lon = fe._lon
+    u = lon.ukf
+    lon_prm = np.array([lon.iw, lon.radius, u.r_omega, u.r_torque, u.q_acc, u.q_acc_high,
+                        u.q_torque, u.omega_dot_high, u.p0_acc, lon._tau])
+    ref, fus = pipe.reference, pipe.fused
+    fused = cfg.velocity == "fused"
+    corner = pipe.corner
+    if fused:
+        assert corner is not None
+        tire = veh.tire
+        kp = corner.params
+        if not isinstance(kp, KFParams):
+            return None
+        hs = corner._slip
+        kf_prm = np.array([tire.kappa_x, tire.sigma0_x, tire.sigma1_x, tire.sigma2_x, kp.r,
+                           kp.r_high, kp.step_ref, hs.lambda_upper, hs.lambda_lower, hs.beta_e,
+                           hs.omega_dot_threshold, hs.min_speed, hs.mu_release])
+        kf = (kf_prm, np.array(kp.q), np.array(kp.q_high), np.array(kp.p0),
+              int(hs.release_window), corner.method == "lugre_ukf", corner._wm, corner._wc,
+              float(corner._tau), corner._x, corner._P, corner._hold, corner._acc_buf,
+              corner._stats, corner._w_buf, corner._t_buf, corner._ring)
+    else:
+        z1, z2 = np.zeros(1), np.zeros((1, 1))
+        kf = (np.zeros(13), z1, z1, z1, 0, False, z1, z1, 0.0, z2, np.zeros((1, 1, 1)), z2,
+              z1, z1, z2, z1, np.zeros(1, dtype=np.int64))
+    ap = cfg.fusion_params.adaptive
+    fusion_prm = np.array([cfg.fusion_params.eta_front, ap.w_s, ap.w_range, ap.rho,
+                           ap.threshold])
+    ref_prm = np.append(ref._prm, ref.params.sigma_corner_slip)
+    pstate = np.array([pipe._prev[0], pipe._prev[1], 1.0 if pipe._fused_is_reference else 0.0])
+    return (fprm, fc.normal == "dynamic", fe._att, lon_prm, lon._wm, lon._wc, lon._x, lon._P,
+            lon._hist_t, lon._hist_w, fe._xw, fe._yw, fe._q_lat, fe._r_lat, fe._w4, fe._c4,
+            float(fe._tau4), fe._lat_x, fe._lat_P, fe._lat_state, ref_prm, ref._x, ref._P,
+            ref._hist, ref._state, fused, fus._x, fus._P, fus._hist, fus._state, pstate,
+            *kf, cfg.fusion == "adaptive", fusion_prm)
