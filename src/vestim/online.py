@@ -26,11 +26,16 @@ from numba import njit
 
 from vestim.estimators.force.lateral import lateral_kernel, split_weights
 from vestim.estimators.force.longitudinal import ukf_kernel
-from vestim.estimators.force.normal import attitude_kernel
+from vestim.estimators.force.normal import (
+    attitude_kernel,
+    normal_load_params,
+    normal_loads_kernel,
+    road_specific_force,
+)
 from vestim.estimators.fusion.axle import adaptive_axle_kernel, fixed_axle_kernel
 from vestim.estimators.velocity.lugre_kf import KFParams, lugre_kf_kernel
 from vestim.estimators.velocity.reference import reference_kernel
-from vestim.models.kinematics import _corner_acc, _rotate, _transport
+from vestim.models.kinematics import _corner_acc, _rotate, _slip_angle, _slip_ratio, _transport
 
 if TYPE_CHECKING:
     from vestim.pipeline import Pipeline
@@ -46,16 +51,8 @@ SAMPLE_KEYS = ("t", "omega_fl", "omega_fr", "omega_rl", "omega_rr", "torque_fl",
 
 
 @njit(**_JIT)
-def _slip_ratio(omega: np.ndarray, vxt: np.ndarray, radius: float, out: np.ndarray) -> None:
-    """kinematics.slip_ratio for one sample (eps 0.1 m/s)."""
-    for i in range(4):
-        rw = radius * omega[0, i]
-        den = max(abs(rw), abs(vxt[0, i]))
-        out[0, i] = (rw - vxt[0, i]) / den if den > 0.1 else 0.0
-
-
-@njit(**_JIT)
-def step_kernel(s: np.ndarray, out: np.ndarray, fprm: np.ndarray, dynamic: bool,
+def step_kernel(s: np.ndarray, out: np.ndarray, fprm: np.ndarray, nl_prm: np.ndarray,
+                dynamic: bool,
                 att: np.ndarray, lon_prm: np.ndarray, lon_wm: np.ndarray, lon_wc: np.ndarray,
                 lon_x: np.ndarray, lon_P: np.ndarray, lon_ht: np.ndarray, lon_hw: np.ndarray,
                 xw: np.ndarray, yw: np.ndarray, q_lat: np.ndarray, r_lat: np.ndarray,
@@ -73,58 +70,37 @@ def step_kernel(s: np.ndarray, out: np.ndarray, fprm: np.ndarray, dynamic: bool,
     """One sample ``s`` (layout :data:`SAMPLE_KEYS` + δ_fl, δ_fr) through the pipeline; the
     output row (the column order of ``Pipeline.run``) is written to ``out``.
 
-    ``fprm`` = [roll_gain, pitch_gain, c_roll, c_pitch, m, L, h, h_pc, h_rc, k_θ, c_θ, k_φ,
-    c_φ, l_f, l_r, roll share front, t_f, t_r, f_rr, R, drag coefficient, I_z, load
-    exponent, slip scale, C_y/F_z]; ``lon_prm`` = [I_w, R, r_ω, r_T, q_acc, q_acc_high,
-    q_T, ω̇_high, p0_acc, τ]; ``kf_prm`` = [κ, σ0, σ1, σ2, r, r_high, step_ref, λ_u, λ_l,
-    β_e, ω̇_th, min speed, μ release]; ``pstate`` = [t_prev, r_prev, fused filter still
-    identical to the plain one (1/0)]; ``fusion_prm`` = [η_front, w_s, w_range, ρ, λ_th].
+    ``fprm`` = [roll_gain, pitch_gain, c_roll, c_pitch, f_rr, R, drag coefficient, I_z,
+    load exponent, slip scale, C_y/F_z]; ``nl_prm`` from
+    :func:`~vestim.estimators.force.normal.normal_load_params`; ``lon_prm`` = [I_w, R,
+    r_ω, r_T, q_acc, q_acc_high, q_T, ω̇_high, p0_acc, τ]; ``kf_prm`` = [κ, σ0, σ1, σ2,
+    r, r_high, step_ref, λ_u, λ_l, β_e, ω̇_th, min speed, μ release]; ``pstate`` =
+    [t_prev, r_prev, fused filter still identical to the plain one (1/0)];
+    ``fusion_prm`` = [η_front, w_s, w_range, ρ, λ_th].
     """
     t1 = s[S_T:S_T + 1]
     omega = s[S_OMEGA:S_OMEGA + 4].reshape(1, 4)
     torque = s[S_TORQUE:S_TORQUE + 4].reshape(1, 4)
-    ax, ay, az, r = s[S_AX], s[S_AY], s[S_AZ], s[S_R]
-    p, q = s[S_P], s[S_Q]
+    r = s[S_R]
     r1 = s[S_R:S_R + 1]
     delta = np.zeros((1, 4))
     delta[0, 0] = s[S_DELTA]
     delta[0, 1] = s[S_DELTA + 1]
-    radius = fprm[19]
+    radius = fprm[5]
     # --- force stage (ForceEstimator.advance) ---
     roll = np.empty(1)
     pitch = np.empty(1)
     attitude_kernel(t1, s[S_AX:S_AX + 1], s[S_AY:S_AY + 1], s[S_P:S_P + 1], s[S_Q:S_Q + 1],
                     fprm[0], fprm[1], fprm[2], fprm[3], att, roll, pitch)
-    cp, sp = np.cos(roll[0]), np.sin(roll[0])
-    ct, st = np.cos(pitch[0]), np.sin(pitch[0])
-    f_y = cp * ay - sp * az
-    tmp_z = sp * ay + cp * az
-    f_x = ct * ax + st * tmp_z
-    f_z = -st * ax + ct * tmp_z
-    m, wb, h, h_pc, h_rc = fprm[4], fprm[5], fprm[6], fprm[7], fprm[8]
-    k_th, c_th, k_ph, c_ph = fprm[9], fprm[10], fprm[11], fprm[12]
-    lf, lr, sf, tr_f, tr_r = fprm[13], fprm[14], fprm[15], fprm[16], fprm[17]
-    static_pitch = -m * (h - h_pc) * f_x
-    static_roll = m * (h - h_rc) * (f_y + f_z * np.sin(roll[0]))
-    m_pitch, m_roll = static_pitch, static_roll
-    if dynamic:
-        if not np.isnan(q):
-            m_pitch = k_th * pitch[0] + c_th * q
-        if not np.isnan(p):
-            m_roll = k_ph * roll[0] + c_ph * p
-    dz_long = (-m * h_pc * f_x + m_pitch) / wb
-    fzf = m * f_z * lr / wb + dz_long
-    fzr = m * f_z * lf / wb - dz_long
-    dlat_f = (m * lr / wb * h_rc * f_y + sf * m_roll) / tr_f
-    dlat_r = (m * lf / wb * h_rc * f_y + (1 - sf) * m_roll) / tr_r
-    fz = np.empty((1, 4))
-    fz[0, 0] = max(0.5 * fzf - dlat_f, 0.0)
-    fz[0, 1] = max(0.5 * fzf + dlat_f, 0.0)
-    fz[0, 2] = max(0.5 * fzr - dlat_r, 0.0)
-    fz[0, 3] = max(0.5 * fzr + dlat_r, 0.0)
+    fxa, fya, fza = road_specific_force(s[S_AX:S_AX + 1], s[S_AY:S_AY + 1], s[S_AZ:S_AZ + 1],
+                                        roll, pitch)
+    f_x, f_y = fxa[0], fya[0]
+    fz = normal_loads_kernel(fxa, fya, fza, roll, pitch, s[S_P:S_P + 1], s[S_Q:S_Q + 1],
+                             nl_prm, dynamic)
+    m, lf, lr = nl_prm[0], nl_prm[9], nl_prm[10]
     teff = np.empty((1, 4))
     for i in range(4):
-        rr = fprm[18] * radius * fz[0, i]
+        rr = fprm[4] * radius * fz[0, i]
         teff[0, i] = torque[0, i] - rr * min(max(omega[0, i] / 3.0, -1.0), 1.0)
     fx = np.empty((1, 4))
     sig_fx = np.full((1, 4), np.nan)
@@ -134,15 +110,11 @@ def step_kernel(s: np.ndarray, out: np.ndarray, fprm: np.ndarray, dynamic: bool,
                lon_x, lon_P, lon_ht, lon_hw, fx, sig_fx, high)
     w_mean = 0.25 * (omega[0, 0] + omega[0, 1] + omega[0, 2] + omega[0, 3])
     drag = np.empty(1)
-    drag[0] = fprm[20] * (radius * w_mean) ** 2
-    weights = split_weights(fz, omega, torque, r1, radius, yw, fprm[22], fprm[23])
+    drag[0] = fprm[6] * (radius * w_mean) ** 2
+    weights = split_weights(fz, omega, torque, r1, radius, yw, fprm[8], fprm[9])
     fy = np.empty((1, 4))
     sig_fy = np.empty((1, 4))
-    fxa = np.empty(1)
-    fya = np.empty(1)
-    fxa[0] = f_x
-    fya[0] = f_y
-    lateral_kernel(t1, fx, delta, weights, fxa, fya, r1, drag, m, fprm[21], xw, yw, q_lat,
+    lateral_kernel(t1, fx, delta, weights, fxa, fya, r1, drag, m, fprm[7], xw, yw, q_lat,
                    r_lat, w4, c4, tau4, lat_x, lat_P, lat_state, fy, sig_fy)
     # --- velocity stage (Pipeline._advance) ---
     mu_x = np.empty((1, 4))
@@ -153,7 +125,7 @@ def step_kernel(s: np.ndarray, out: np.ndarray, fprm: np.ndarray, dynamic: bool,
     axle = np.empty((1, 2))
     for a in range(2):
         i, j = 2 * a, 2 * a + 1
-        c = fprm[24] * (fz[0, i] + fz[0, j])
+        c = fprm[10] * (fz[0, i] + fz[0, j])
         axle[0, a] = -(fy[0, i] + fy[0, j]) / c if c > 1.0 else np.nan
     none_v = np.full((1, 0), np.nan)
     v_ref = np.empty((1, 2))
@@ -215,7 +187,7 @@ def step_kernel(s: np.ndarray, out: np.ndarray, fprm: np.ndarray, dynamic: bool,
         _rotate(vxr_i.reshape(-1), vyr_i.reshape(-1), delta.reshape(-1), 1.0, vxt_r.reshape(-1),
                 vyt_r.reshape(-1))
         slip = np.empty((1, 4))
-        _slip_ratio(omega, vxt_r, radius, slip)
+        _slip_ratio(omega.reshape(-1), vxt_r.reshape(-1), radius, 0.1, slip.reshape(-1))
         vx_b = np.empty((1, 4))
         vy_b = np.empty((1, 4))
         _rotate(k_vxt.reshape(-1), np.zeros(4), delta.reshape(-1), -1.0, vx_b.reshape(-1),
@@ -258,7 +230,9 @@ def step_kernel(s: np.ndarray, out: np.ndarray, fprm: np.ndarray, dynamic: bool,
     _rotate(vx_o.reshape(-1), vy_o.reshape(-1), delta.reshape(-1), 1.0, vxt.reshape(-1),
             vyt.reshape(-1))
     sr = np.empty((1, 4))
-    _slip_ratio(omega, vxt, radius, sr)
+    _slip_ratio(omega.reshape(-1), vxt.reshape(-1), radius, 0.1, sr.reshape(-1))
+    sa = np.empty((1, 4))
+    _slip_angle(vxt.reshape(-1), vyt.reshape(-1), 0.5, sa.reshape(-1))
     k = 0
     out[k] = t1[0]
     out[k + 1] = v[0, 0]
@@ -266,13 +240,10 @@ def step_kernel(s: np.ndarray, out: np.ndarray, fprm: np.ndarray, dynamic: bool,
     out[k + 3] = sig[0, 0]
     out[k + 4] = sig[0, 1]
     k = 5
-    for block in (vx_o, vy_o, vxt, vyt, sr):
+    for block in (vx_o, vy_o, vxt, vyt, sr, sa):
         for i in range(4):
             out[k + i] = block[0, i]
         k += 4
-    for i in range(4):
-        out[k + i] = np.arctan(vyt[0, i] / vxt[0, i]) if abs(vxt[0, i]) > 0.5 else 0.0
-    k += 4
     for block in (fx, fy, fz, mu_x, mu_y, sig_fx, sig_fy):
         for i in range(4):
             out[k + i] = block[0, i]
@@ -291,15 +262,12 @@ def build_step(pipe: Pipeline) -> tuple[Any, ...] | None:
         return None
     fe = pipe.force
     veh = pipe.vehicle
-    b, s, a = veh.body, veh.suspension, veh.aerodynamics
+    b, a = veh.body, veh.aerodynamics
     fc = fe.config
     lp = fc.lateral
-    fprm = np.array([fc.roll_gain, fc.pitch_gain, fe._c_roll, fe._c_pitch, b.mass, b.wheelbase,
-                     b.cg_height, s.pitch_center_height, b.roll_center_height,
-                     s.pitch_stiffness, s.pitch_damping, s.roll_stiffness, s.roll_damping,
-                     b.lf, b.lr, s.roll_stiffness_front_share, b.track_f, b.track_r,
-                     a.rolling_resistance, b.wheel_radius, fe._drag_coef, b.yaw_inertia,
-                     lp.load_exponent, lp.slip_scale, pipe._cy_norm])
+    fprm = np.array([fc.roll_gain, fc.pitch_gain, fe._c_roll, fe._c_pitch, a.rolling_resistance,
+                     b.wheel_radius, fe._drag_coef, b.yaw_inertia, lp.load_exponent,
+                     lp.slip_scale, pipe._cy_norm])
     lon = fe._lon
     u = lon.ukf
     lon_prm = np.array([lon.iw, lon.radius, u.r_omega, u.r_torque, u.q_acc, u.q_acc_high,
@@ -330,8 +298,9 @@ def build_step(pipe: Pipeline) -> tuple[Any, ...] | None:
                            ap.threshold])
     ref_prm = np.append(ref._prm, ref.params.sigma_corner_slip)
     pstate = np.array([pipe._prev[0], pipe._prev[1], 1.0 if pipe._fused_is_reference else 0.0])
-    return (fprm, fc.normal == "dynamic", fe._att, lon_prm, lon._wm, lon._wc, lon._x, lon._P,
-            lon._hist_t, lon._hist_w, fe._xw, fe._yw, fe._q_lat, fe._r_lat, fe._w4, fe._c4,
-            float(fe._tau4), fe._lat_x, fe._lat_P, fe._lat_state, ref_prm, ref._x, ref._P,
-            ref._hist, ref._state, fused, fus._x, fus._P, fus._hist, fus._state, pstate,
-            *kf, cfg.fusion == "adaptive", fusion_prm)
+    force = (fprm, normal_load_params(veh), fc.normal == "dynamic", fe._att, lon_prm, lon._wm,
+             lon._wc, lon._x, lon._P, lon._hist_t, lon._hist_w, fe._xw, fe._yw, fe._q_lat,
+             fe._r_lat, fe._w4, fe._c4, float(fe._tau4), fe._lat_x, fe._lat_P, fe._lat_state)
+    velocity = (ref_prm, ref._x, ref._P, ref._hist, ref._state, fused, fus._x, fus._P,
+                fus._hist, fus._state, pstate)
+    return (*force, *velocity, *kf, cfg.fusion == "adaptive", fusion_prm)

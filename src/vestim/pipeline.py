@@ -402,7 +402,7 @@ class Pipeline:
         out = np.empty(len(self._step_names))
         args = self._step_args
         online.step_kernel(s, out, *args)
-        pstate = args[30]
+        pstate = args[31]
         self._prev = pstate[:2]  # a view: the general path replaces it, never writes into it
         self._fused_is_reference = bool(pstate[2])
         if self.corner is not None and self.config.velocity == "fused":

@@ -118,17 +118,33 @@ def to_body_frame(vxt: np.ndarray, vyt: np.ndarray,
     return _rotated(vxt, vyt, delta, -1.0)
 
 
+@njit(cache=True, error_model="numpy")
+def _slip_ratio(omega: np.ndarray, vxt: np.ndarray, radius: float, eps: float,
+                out: np.ndarray) -> None:
+    for k in range(omega.shape[0]):
+        rw = radius * omega[k]
+        den = max(abs(rw), abs(vxt[k]))
+        out[k] = (rw - vxt[k]) / den if den > eps else 0.0
+
+
+@njit(cache=True, error_model="numpy")
+def _slip_angle(vxt: np.ndarray, vyt: np.ndarray, eps: float, out: np.ndarray) -> None:
+    for k in range(vxt.shape[0]):
+        out[k] = np.arctan(vyt[k] / vxt[k]) if abs(vxt[k]) > eps else 0.0
+
+
 def slip_ratio(omega: np.ndarray, vxt: np.ndarray, radius: float, eps: float = 0.1) -> np.ndarray:
     """(R ω − v_xt)/max(|R ω|, |v_xt|) (spec; magnitudes so it stays bounded at standstill and
     when reversing); 0 where both speeds are below ``eps`` m/s."""
-    rw = radius * omega
-    den = np.maximum(np.abs(rw), np.abs(vxt))
-    with np.errstate(divide="ignore", invalid="ignore"):
-        return np.where(den > eps, (rw - vxt) / np.where(den > eps, den, 1.0), 0.0)
+    omega, vxt = np.broadcast_arrays(np.asarray(omega, dtype=float), np.asarray(vxt, dtype=float))
+    out = np.empty(omega.shape)
+    _slip_ratio(_flat(omega), _flat(vxt), float(radius), float(eps), out.reshape(-1))
+    return out
 
 
 def slip_angle(vxt: np.ndarray, vyt: np.ndarray, eps: float = 0.5) -> np.ndarray:
     """atan(v_yt / v_xt) in the tire frame (spec: negative in a steady left turn); 0 below ``eps`` m/s."""
-    with np.errstate(divide="ignore", invalid="ignore"):
-        return np.where(np.abs(vxt) > eps, np.arctan(vyt / np.where(np.abs(vxt) > eps, vxt, 1.0)),
-                        0.0)
+    vxt, vyt = np.broadcast_arrays(np.asarray(vxt, dtype=float), np.asarray(vyt, dtype=float))
+    out = np.empty(vxt.shape)
+    _slip_angle(_flat(vxt), _flat(vyt), float(eps), out.reshape(-1))
+    return out

@@ -83,6 +83,7 @@ def attitude_kernel(t: np.ndarray, ax: np.ndarray, ay: np.ndarray, p: np.ndarray
         pitch[k] = state[1]
 
 
+@njit(**_JIT)
 def road_specific_force(ax: np.ndarray, ay: np.ndarray, az: np.ndarray, roll: np.ndarray,
                         pitch: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """IMU specific force rotated from the body to the road plane: (f_x, f_y, f_z) in m/s².
@@ -115,6 +116,50 @@ def level_road_az(ax: np.ndarray, ay: np.ndarray, roll: np.ndarray,
     return ((G + st * ax) / ct - sp * ay) / cp
 
 
+def normal_load_params(vehicle: Vehicle) -> np.ndarray:
+    """Parameters of :func:`normal_loads_kernel`: [m, L, h, h_pc, h_rc, k_θ, c_θ, k_φ, c_φ,
+    l_f, l_r, front roll-stiffness share, t_f, t_r] (SI) from the vehicle file."""
+    b, s = vehicle.body, vehicle.suspension
+    return np.array([b.mass, b.wheelbase, b.cg_height, s.pitch_center_height,
+                     b.roll_center_height, s.pitch_stiffness, s.pitch_damping, s.roll_stiffness,
+                     s.roll_damping, b.lf, b.lr, s.roll_stiffness_front_share, b.track_f,
+                     b.track_r])
+
+
+@njit(**_JIT)
+def normal_loads_kernel(f_x: np.ndarray, f_y: np.ndarray, f_z: np.ndarray, roll: np.ndarray,
+                        pitch: np.ndarray, roll_rate: np.ndarray, pitch_rate: np.ndarray,
+                        prm: np.ndarray, dynamic: bool) -> np.ndarray:
+    """Normal load per corner (n, 4) in N; ``prm`` from :func:`normal_load_params`.
+
+    See the module docstring for the equations. In dynamic mode a NaN rate falls back to
+    the static elastic moment, sample by sample.
+    """
+    m, L, h, h_pc, h_rc = prm[0], prm[1], prm[2], prm[3], prm[4]
+    k_th, c_th, k_ph, c_ph = prm[5], prm[6], prm[7], prm[8]
+    lf, lr, sf, t_f, t_r = prm[9], prm[10], prm[11], prm[12], prm[13]
+    n = f_x.shape[0]
+    out = np.empty((n, 4))
+    for k in range(n):
+        m_pitch = -m * (h - h_pc) * f_x[k]
+        m_roll = m * (h - h_rc) * (f_y[k] + f_z[k] * np.sin(roll[k]))
+        if dynamic:
+            if not np.isnan(pitch_rate[k]):
+                m_pitch = k_th * pitch[k] + c_th * pitch_rate[k]
+            if not np.isnan(roll_rate[k]):
+                m_roll = k_ph * roll[k] + c_ph * roll_rate[k]
+        dz_long = (-m * h_pc * f_x[k] + m_pitch) / L  # load gained by the front axle
+        fzf = m * f_z[k] * lr / L + dz_long
+        fzr = m * f_z[k] * lf / L - dz_long
+        dlat_f = (m * lr / L * h_rc * f_y[k] + sf * m_roll) / t_f
+        dlat_r = (m * lf / L * h_rc * f_y[k] + (1 - sf) * m_roll) / t_r
+        out[k, 0] = max(0.5 * fzf - dlat_f, 0.0)
+        out[k, 1] = max(0.5 * fzf + dlat_f, 0.0)
+        out[k, 2] = max(0.5 * fzr - dlat_r, 0.0)
+        out[k, 3] = max(0.5 * fzr + dlat_r, 0.0)
+    return out
+
+
 def normal_loads(f_x: np.ndarray, f_y: np.ndarray, f_z: np.ndarray, roll: np.ndarray,
                  pitch: np.ndarray, roll_rate: np.ndarray, pitch_rate: np.ndarray,
                  vehicle: Vehicle, mode: str = "static") -> np.ndarray:
@@ -125,29 +170,9 @@ def normal_loads(f_x: np.ndarray, f_y: np.ndarray, f_z: np.ndarray, roll: np.nda
     """
     if mode not in MODES:
         raise ValueError(f"normal-load mode {mode!r}: use one of {', '.join(MODES)}")
-    b, s = vehicle.body, vehicle.suspension
-    m, L, h = b.mass, b.wheelbase, b.cg_height
-    static_pitch = -m * (h - s.pitch_center_height) * f_x
-    static_roll = m * (h - b.roll_center_height) * (f_y + f_z * np.sin(roll))
-    if mode == "dynamic":
-        m_pitch = s.pitch_stiffness * pitch + s.pitch_damping * np.nan_to_num(pitch_rate)
-        m_roll = s.roll_stiffness * roll + s.roll_damping * np.nan_to_num(roll_rate)
-        m_pitch = np.where(np.isnan(pitch_rate), static_pitch, m_pitch)
-        m_roll = np.where(np.isnan(roll_rate), static_roll, m_roll)
-    else:
-        m_pitch, m_roll = static_pitch, static_roll
-    dz_long = (-m * s.pitch_center_height * f_x + m_pitch) / L  # load gained by the front axle
-    fzf = m * f_z * b.lr / L + dz_long
-    fzr = m * f_z * b.lf / L - dz_long
-    sf = s.roll_stiffness_front_share
-    dlat_f = (m * b.lr / L * b.roll_center_height * f_y + sf * m_roll) / b.track_f
-    dlat_r = (m * b.lf / L * b.roll_center_height * f_y + (1 - sf) * m_roll) / b.track_r
-    out = np.empty((f_x.shape[0], 4))
-    out[:, 0] = 0.5 * fzf - dlat_f
-    out[:, 1] = 0.5 * fzf + dlat_f
-    out[:, 2] = 0.5 * fzr - dlat_r
-    out[:, 3] = 0.5 * fzr + dlat_r
-    return np.maximum(out, 0.0)
+    arrays = [np.ascontiguousarray(a, dtype=float) for a in (f_x, f_y, f_z, roll, pitch,
+                                                              roll_rate, pitch_rate)]
+    return normal_loads_kernel(*arrays, normal_load_params(vehicle), mode == "dynamic")
 
 
 def normal_loads_paper(ax: np.ndarray, ay: np.ndarray, az: np.ndarray, roll: np.ndarray,
