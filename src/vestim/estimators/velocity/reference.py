@@ -130,13 +130,17 @@ def _block_update(x: np.ndarray, P: np.ndarray, idx: np.ndarray, z: float, r: fl
     if innov * innov > gate * gate * s:
         return np.nan
     m = idx.shape[0]
-    col = np.empty(m)
+    # K P[i, :] for a block of at most 3 states, without a scratch array (this runs six
+    # times per sample).
+    c0 = P[idx[0], i]
+    c1 = P[idx[1], i] if m > 1 else 0.0
+    c2 = P[idx[2], i] if m > 2 else 0.0
     for a in range(m):
-        col[a] = P[idx[a], i]
-    for a in range(m):
-        x[idx[a]] += col[a] / s * innov
+        ca = c0 if a == 0 else (c1 if a == 1 else c2)
+        x[idx[a]] += ca / s * innov
         for b in range(m):
-            P[idx[a], idx[b]] -= col[a] * col[b] / s
+            cb = c0 if b == 0 else (c1 if b == 1 else c2)
+            P[idx[a], idx[b]] -= ca * cb / s
     return innov
 
 
