@@ -4,6 +4,8 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from vestim.estimators.velocity.reference import ReferenceFilter, ReferenceParams
 
@@ -105,3 +107,33 @@ def test_chunked_processing_equals_batch() -> None:
     b = _run(inp, chunks=7)
     np.testing.assert_array_equal(a["v"], b["v"])
     np.testing.assert_array_equal(a["bias"], b["bias"])
+
+
+@settings(max_examples=25, deadline=None)
+@given(seed=st.integers(0, 2**31 - 1), speed=st.floats(0.0, 40.0),
+       slip=st.floats(-0.5, 0.5), with_corner=st.booleans())
+def test_covariance_stays_symmetric_positive_definite(seed: int, speed: float, slip: float,
+                                                      with_corner: bool) -> None:
+    """Whatever the wheels, torques, accelerations, slip angles and corner measurements
+    (random, including wheels spinning by a factor 1 + slip and rejected updates), P stays
+    symmetric positive definite and block diagonal, and the state stays finite."""
+    rng = np.random.default_rng(seed)
+    n = 400
+    vx = np.full(n, speed) + np.cumsum(rng.normal(0.0, 0.02, n))
+    r = rng.normal(0.0, 0.3, n)
+    inp = _inputs(vx, rng.normal(0.0, 2.0, n), rng.normal(0.0, 2.0, n), r,
+                  rng.normal(0.0, 0.05, (n, 2)))
+    inp["omega"] = np.ascontiguousarray(inp["omega"] * (1.0 + slip * rng.random((n, 4))))
+    inp["torque"] = rng.normal(0.0, 500.0, (n, 4))
+    inp["mu_x"] = rng.normal(0.0, 0.3, (n, 4))
+    inp["delta"][:, :2] = rng.normal(0.0, 0.1, (n, 1))
+    filt = ReferenceFilter(R, 1.4, 1.6, XW, YW)
+    extra = np.where(rng.random((n, 1)) < 0.3, vx[:, None] + rng.normal(0.0, 1.0, (n, 1)),
+                     np.nan) if with_corner else None
+    var = np.full((n, 1), 9.0) if with_corner else None
+    out = filt.advance(**inp, extra_v=extra, extra_var=var)
+    P = filt._P
+    assert np.all(np.isfinite(out["v"])) and np.all(np.isfinite(P))
+    np.testing.assert_allclose(P, P.T, atol=1e-12)
+    assert np.linalg.eigvalsh(P).min() > 0.0
+    assert np.all(P[np.ix_([0, 2], [1, 3, 4])] == 0.0)
