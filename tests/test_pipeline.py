@@ -198,3 +198,19 @@ def test_online_step_is_compiled_and_exact(velocity):
     if velocity == "fused":
         assert not online._fused_is_reference  # the corner measurement did enter
     np.testing.assert_array_equal(pd.DataFrame(rows)[batch.columns].to_numpy(), batch.to_numpy())
+
+
+def test_cli_estimate_fusion_flag(tmp_path, log):
+    """`--fusion opinion` with a corner observer writes the confidences; an unknown fusion is
+    named in the error."""
+    src = tmp_path / "in.parquet"
+    write_log(strip(log).iloc[:600], src)
+    out = tmp_path / "est.parquet"
+    res = CliRunner().invoke(app, ["estimate", str(src), "--out", str(out), "--velocity", "kf",
+                                   "--fusion", "opinion"])
+    assert res.exit_code == 0, res.output
+    est = read_log(out)
+    assert {f"confidence_{c}" for c in ("fl", "fr", "rl", "rr")} <= set(est.columns)
+    assert est.attrs["fusion"] == "opinion"
+    bad = CliRunner().invoke(app, ["estimate", str(src), "--out", str(out), "--fusion", "vote"])
+    assert bad.exit_code == 2 and "fusion method 'vote'" in bad.output
