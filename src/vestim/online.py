@@ -24,6 +24,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 from numba import njit
 
+from vestim.estimators.force.estimator import normalised
 from vestim.estimators.force.lateral import lateral_kernel, split_weights
 from vestim.estimators.force.longitudinal import ukf_kernel
 from vestim.estimators.force.normal import (
@@ -34,7 +35,8 @@ from vestim.estimators.force.normal import (
 )
 from vestim.estimators.fusion.axle import adaptive_axle_kernel, fixed_axle_kernel
 from vestim.estimators.velocity.lugre_kf import KFParams, lugre_kf_kernel
-from vestim.estimators.velocity.reference import reference_kernel
+from vestim.estimators.velocity.reference import axle_slip_angles, reference_kernel
+from vestim.models.chassis import torque_less_rolling_resistance
 from vestim.models.kinematics import _corner_acc, _rotate, _slip_angle, _slip_ratio, _transport
 
 if TYPE_CHECKING:
@@ -98,10 +100,7 @@ def step_kernel(s: np.ndarray, out: np.ndarray, fprm: np.ndarray, nl_prm: np.nda
     fz = normal_loads_kernel(fxa, fya, fza, roll, pitch, s[S_P:S_P + 1], s[S_Q:S_Q + 1],
                              nl_prm, dynamic)
     m, lf, lr = nl_prm[0], nl_prm[9], nl_prm[10]
-    teff = np.empty((1, 4))
-    for i in range(4):
-        rr = fprm[4] * radius * fz[0, i]
-        teff[0, i] = torque[0, i] - rr * min(max(omega[0, i] / 3.0, -1.0), 1.0)
+    teff = torque_less_rolling_resistance(torque, omega, fz, fprm[4] * radius)
     fx = np.empty((1, 4))
     sig_fx = np.full((1, 4), np.nan)
     high = np.empty((1, 4), dtype=np.bool_)
@@ -117,16 +116,9 @@ def step_kernel(s: np.ndarray, out: np.ndarray, fprm: np.ndarray, nl_prm: np.nda
     lateral_kernel(t1, fx, delta, weights, fxa, fya, r1, drag, m, fprm[7], xw, yw, q_lat,
                    r_lat, w4, c4, tau4, lat_x, lat_P, lat_state, fy, sig_fy)
     # --- velocity stage (Pipeline._advance) ---
-    mu_x = np.empty((1, 4))
-    mu_y = np.empty((1, 4))
-    for i in range(4):
-        mu_x[0, i] = fx[0, i] / fz[0, i] if fz[0, i] > 1.0 else 0.0
-        mu_y[0, i] = fy[0, i] / fz[0, i] if fz[0, i] > 1.0 else 0.0
-    axle = np.empty((1, 2))
-    for a in range(2):
-        i, j = 2 * a, 2 * a + 1
-        c = fprm[10] * (fz[0, i] + fz[0, j])
-        axle[0, a] = -(fy[0, i] + fy[0, j]) / c if c > 1.0 else np.nan
+    mu_x = normalised(fx, fz)
+    mu_y = normalised(fy, fz)
+    axle = axle_slip_angles(fy, fz, fprm[10])
     none_v = np.full((1, 0), np.nan)
     v_ref = np.empty((1, 2))
     sig_ref = np.empty((1, 2))

@@ -36,7 +36,9 @@ from vestim.estimators.force.estimator import (
     Inputs,
     columns_from_groups,
     force_groups,
+    frame_from_chunks,
     inputs_from_log,
+    normalised,
 )
 from vestim.estimators.force.longitudinal import METHODS as FORCE_METHODS
 from vestim.estimators.fusion import FUSION_METHODS, FusionParams, confidences, fuse
@@ -44,7 +46,11 @@ from vestim.estimators.velocity.corner import CornerVelocityEstimator, CornerVel
 from vestim.estimators.velocity.kinematic import KinematicIntegrator
 from vestim.estimators.velocity.lpv_observer import GainSchedule as LPVGains
 from vestim.estimators.velocity.lpv_observer import LPVParams
-from vestim.estimators.velocity.reference import ReferenceFilter, ReferenceParams
+from vestim.estimators.velocity.reference import (
+    ReferenceFilter,
+    ReferenceParams,
+    axle_slip_angles,
+)
 from vestim.io.vehicle import Vehicle
 from vestim.models import kinematics as kin
 
@@ -239,29 +245,17 @@ class Pipeline:
         vx_i, vy_i = kin.cg_to_corners(vx_guess, ref["v"][:, 1], u.yaw_rate, self._xw, self._yw)
         _, vyt = kin.to_tire_frame(vx_i, vy_i, u.delta)
         fz = res["fz"]
-        with np.errstate(divide="ignore", invalid="ignore"):
-            mu_y = np.where(fz > 1.0, res["fy"] / fz, 0.0)
+        mu_y = normalised(res["fy"], fz)
         inp = CornerVelocityInput(t=u.t, omega=u.omega, mu_x=mu_x, a_xt=a_xt, delta=u.delta,
                                   yaw_rate=u.yaw_rate, mu_y=mu_y, a_yt=a_yt, vyt=vyt)
         return self.corner.advance(inp)
 
-    def _axle_slip(self, fy: np.ndarray, fz: np.ndarray) -> np.ndarray:
-        """Axle slip angles α = −F_y/C_y (n, 2) [front, rear], rad, with the nominal small-slip
-        stiffness C_y = ΣF_z σ0y/κy of the [tire] table (LuGre, 000 eq. (16)); NaN where the
-        axle carries under 1 N (lifted)."""
-        out = np.empty((fy.shape[0], 2))
-        for a, (i, j) in enumerate(((0, 1), (2, 3))):
-            c = self._cy_norm * (fz[:, i] + fz[:, j])
-            with np.errstate(divide="ignore", invalid="ignore"):
-                out[:, a] = np.where(c > 1.0, -(fy[:, i] + fy[:, j]) / c, np.nan)
-        return out
-
     def _advance(self, u: Any) -> dict[str, np.ndarray]:
         res = self.force.advance(u)
         fz = res["fz"]
-        with np.errstate(divide="ignore", invalid="ignore"):
-            mu_x = np.where(fz > 1.0, res["fx"] / fz, 0.0)
-            axle_slip = self._axle_slip(res["fy"], fz)
+        mu_x = normalised(res["fx"], fz)
+        # Linear-tire axle slip angles with C_y = ΣF_z σ0y/κy of the [tire] table (000 eq. (16)).
+        axle_slip = axle_slip_angles(res["fy"], fz, self._cy_norm)
         method = self.config.velocity
         n = u.t.shape[0]
         mu_x_c = np.ascontiguousarray(mu_x)
@@ -344,26 +338,10 @@ class Pipeline:
         self.reset()
         u = inputs_from_log(log, self.vehicle)
         n = u.t.shape[0]
-        names: list[str] = []
-        block = np.empty((0, n))
-        for start in range(0, max(n, 1), chunk):
-            part = _slice_inputs(u, start, min(start + chunk, n))
-            groups = self._groups(part.t, self._advance(part))
-            if start == 0:
-                names = [name for g, _ in groups for name in g]
-                block = np.empty((len(names), n))
-                rows = {name: j for j, name in enumerate(names)}
-            filled = np.zeros(len(names), dtype=bool)
-            stop = start + part.t.shape[0]
-            for group_names, values in groups:
-                j = rows.get(group_names[0])
-                if j is None:  # a channel the first chunk did not have (method-dependent)
-                    continue
-                block[j:j + len(group_names), start:stop] = values.T if values.ndim == 2 else values
-                filled[j:j + len(group_names)] = True
-            block[~filled, start:stop] = np.nan
-        # pandas stores a float block as (columns, samples): the transpose is not copied.
-        return pd.DataFrame(block.T, columns=names, copy=False)
+        chunks = (self._groups(part.t, self._advance(part))
+                  for part in (_slice_inputs(u, a, min(a + chunk, n))
+                               for a in range(0, max(n, 1), chunk)))
+        return frame_from_chunks(chunks, n)
 
     def step(self, sample: Mapping[str, float]) -> dict[str, float]:
         """Advance by one sample (mapping of the log's column names); return that row.

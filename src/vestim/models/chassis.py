@@ -56,6 +56,7 @@ the brake balance. The axle totals stay right in all these cases.
 from __future__ import annotations
 
 import numpy as np
+from numba import njit
 
 from vestim.io.vehicle import DRIVETRAINS, Vehicle
 
@@ -73,6 +74,19 @@ def drive_front_share(drivetrain: str, front_drive_share: float) -> float:
 def rolling_sign(omega: np.ndarray) -> np.ndarray:
     """s(ω) = clip(ω/ω_0, −1, 1): direction of the rolling-resistance moment, faded near standstill."""
     return np.clip(omega / RR_OMEGA0, -1.0, 1.0)
+
+
+@njit(cache=True, error_model="numpy")
+def torque_less_rolling_resistance(torque: np.ndarray, omega: np.ndarray, fz: np.ndarray,
+                                   f_radius: float) -> np.ndarray:
+    """T_i − f R F_z,i s(ω_i) (n, 4), N m: the net wheel torque less the rolling-resistance
+    moment of 000 eq. (1)'s wheel (``f_radius`` = f·R, m; s as :func:`rolling_sign`)."""
+    out = np.empty(torque.shape)
+    for k in range(torque.shape[0]):
+        for i in range(torque.shape[1]):
+            rr = f_radius * fz[k, i]
+            out[k, i] = torque[k, i] - rr * min(max(omega[k, i] / RR_OMEGA0, -1.0), 1.0)
+    return out
 
 
 def steered_drag(f_y: np.ndarray, delta_front: np.ndarray, mass: float, lf: float,

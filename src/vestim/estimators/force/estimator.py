@@ -29,11 +29,12 @@ Missing channels (``shared/spec/log-format.md``; the gap of 001 Sec. VI):
 
 from __future__ import annotations
 
-from collections.abc import Mapping
+from collections.abc import Iterable, Mapping
 from dataclasses import dataclass, field
 
 import numpy as np
 import pandas as pd
+from numba import njit
 
 from vestim.constants import CORNERS
 from vestim.errors import LogFormatError
@@ -174,6 +175,16 @@ ColumnGroup = tuple[list[str], np.ndarray]
 """Spec column names and their values: (n,) for one name, (n, k) for k names."""
 
 
+@njit(cache=True, error_model="numpy")
+def normalised(force: np.ndarray, fz: np.ndarray) -> np.ndarray:
+    """Normalised tire force F/F_z (n, 4), the papers' μ_x, μ_y; 0 where F_z ≤ 1 N (lifted)."""
+    out = np.empty(force.shape)
+    for k in range(force.shape[0]):
+        for i in range(force.shape[1]):
+            out[k, i] = force[k, i] / fz[k, i] if fz[k, i] > 1.0 else 0.0
+    return out
+
+
 def force_groups(res: Mapping[str, np.ndarray]) -> list[ColumnGroup]:
     """Spec channels of the force stage from :meth:`ForceEstimator.advance`'s result, grouped
     by quantity (``fx_fl … fx_rr``, ``fy_*``, ``fz_*``, ``mu_x_*``, ``mu_y_*``, ``sigma_fx_*``
@@ -186,9 +197,8 @@ def force_groups(res: Mapping[str, np.ndarray]) -> list[ColumnGroup]:
     def names(prefix: str) -> list[str]:
         return [f"{prefix}_{c}" for c in CORNERS]
 
-    with np.errstate(divide="ignore", invalid="ignore"):
-        mu_x = np.where(fz > 1.0, res["fx"] / fz, 0.0)
-        mu_y = np.where(fz > 1.0, res["fy"] / fz, 0.0)
+    mu_x = normalised(res["fx"], fz)
+    mu_y = normalised(res["fy"], fz)
     groups: list[ColumnGroup] = [(names("fx"), res["fx"]), (names("fy"), res["fy"]),
                                  (names("fz"), fz), (names("mu_x"), mu_x), (names("mu_y"), mu_y)]
     if not np.all(np.isnan(res["sigma_fx"])):
@@ -210,17 +220,34 @@ def columns_from_groups(groups: list[ColumnGroup]) -> dict[str, np.ndarray]:
     return cols
 
 
-def frame_from_groups(groups: list[ColumnGroup], n: int) -> pd.DataFrame:
-    """One float64 DataFrame block from column groups, filled as its transpose (pandas stores
-    a block as (columns, samples)): each group is one strided copy, nothing is copied twice."""
-    width = sum(len(g) for g, _ in groups)
-    block = np.empty((width, n))
-    j = 0
-    for group_names, values in groups:
-        k = len(group_names)
-        block[j:j + k] = values.T if values.ndim == 2 else values
-        j += k
-    return pd.DataFrame(block.T, columns=[name for g, _ in groups for name in g], copy=False)
+def frame_from_chunks(chunks: Iterable[list[ColumnGroup]], n: int) -> pd.DataFrame:
+    """One float64 DataFrame from consecutive chunks of column groups (n samples in all).
+
+    The first chunk fixes the columns; a later chunk fills its rows of the block, and a
+    column it lacks is NaN there. The block is filled as its transpose (pandas stores a
+    float block as (columns, samples)), so each group is one strided copy and the frame
+    is not copied again.
+    """
+    names: list[str] = []
+    rows: dict[str, int] = {}
+    block = np.empty((0, n))
+    start = 0
+    for groups in chunks:
+        if not names:
+            names = [name for g, _ in groups for name in g]
+            rows = {name: j for j, name in enumerate(names)}
+            block = np.empty((len(names), n))
+        stop = start + groups[0][1].shape[0]
+        filled = np.zeros(len(names), dtype=bool)
+        for group_names, values in groups:
+            j = rows.get(group_names[0])
+            if j is None:  # a channel the first chunk did not have (method-dependent)
+                continue
+            block[j:j + len(group_names), start:stop] = values.T if values.ndim == 2 else values
+            filled[j:j + len(group_names)] = True
+        block[~filled, start:stop] = np.nan
+        start = stop
+    return pd.DataFrame(block.T, columns=names, copy=False)
 
 
 def force_columns(t: np.ndarray, res: Mapping[str, np.ndarray]) -> dict[str, np.ndarray]:
@@ -327,10 +354,10 @@ class ForceEstimator:
         # Rolling resistance acts on the wheel as a moment f·R·F_z (the ground force
         # of a free-rolling tire is −f·F_z); 000 eq. (1) omits it, which biases F_x
         # by f·F_z ≈ 65 N per SUV corner. The estimators see the effective torque.
-        rr = self.vehicle.aerodynamics.rolling_resistance * b.wheel_radius * fz
         # The moment fades out below |ω| = 3 rad/s (1 m/s): a sharper switch would
         # flip with the wheel-speed noise (σ 0.42 rad/s) at standstill.
-        torque = np.ascontiguousarray(u.torque - rr * chassis.rolling_sign(u.omega))
+        torque = chassis.torque_less_rolling_resistance(
+            u.torque, u.omega, fz, self.vehicle.aerodynamics.rolling_resistance * b.wheel_radius)
         fx, sig_fx = self._lon.advance(u.t, u.omega, torque)
         drag = self._drag_coef * (b.wheel_radius * u.omega.mean(axis=1)) ** 2
         fy = np.empty((n, 4))
@@ -350,7 +377,7 @@ class ForceEstimator:
         """Estimate forces over a whole log (state reset first). Returns the estimated channels."""
         self.reset()
         u = inputs_from_log(log, self.vehicle)
-        return frame_from_groups([(["t"], u.t), *force_groups(self.advance(u))], u.t.shape[0])
+        return frame_from_chunks([[(["t"], u.t), *force_groups(self.advance(u))]], u.t.shape[0])
 
     def step(self, sample: Mapping[str, float]) -> dict[str, float]:
         """Advance by one sample (a mapping with the log's column names); return that row.

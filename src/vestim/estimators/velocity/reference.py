@@ -115,6 +115,19 @@ class ReferenceParams:
 
 
 @njit(**_JIT)
+def axle_slip_angles(fy: np.ndarray, fz: np.ndarray, cy_per_load: float) -> np.ndarray:
+    """Axle slip angles α = −F_y/C_y (n, 2) [front, rear], rad, the linear-tire input of the
+    v_y bounds, with the small-slip stiffness C_y = ΣF_z · ``cy_per_load`` (1/rad) of the
+    axle's tires (corner order fl, fr, rl, rr); NaN where C_y ≤ 1 N/rad (lifted axle)."""
+    out = np.empty((fy.shape[0], 2))
+    for k in range(fy.shape[0]):
+        for a in range(2):
+            c = cy_per_load * (fz[k, 2 * a] + fz[k, 2 * a + 1])
+            out[k, a] = -(fy[k, 2 * a] + fy[k, 2 * a + 1]) / c if c > 1.0 else np.nan
+    return out
+
+
+@njit(**_JIT)
 def _block_update(x: np.ndarray, P: np.ndarray, idx: np.ndarray, z: float, r: float,
                   gate: float) -> float:
     """Kalman update of state idx[0] by a direct measurement z = x[idx[0]] + v, var(v) = r;
