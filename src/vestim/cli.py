@@ -92,8 +92,9 @@ def estimate_cmd(
                                           "kinematic | kf | ukf | lpv.")] = PipelineConfig.velocity,
     fusion: Annotated[str, typer.Option(help="Corner-to-CG fusion: axle | adaptive | opinion "
                                         "(writes confidence_*).")] = PipelineConfig.fusion,
-    force: Annotated[str, typer.Option(help="Longitudinal force: ukf | ukf_rw | pid | uio | naive.")] = "ukf",
-    normal: Annotated[str, typer.Option(help="Load transfer: dynamic | static.")] = "dynamic",
+    force: Annotated[str, typer.Option(help="Longitudinal force: ukf | ukf_rw | pid | uio | "
+                                       "naive.")] = PipelineConfig.force,
+    normal: Annotated[str, typer.Option(help="Load transfer: static | dynamic.")] = PipelineConfig.normal,
     gains: Annotated[Path | None, typer.Option(help="Gains file of `vestim design lpv` for "
                                                "--velocity lpv.")] = None,
     config: Annotated[Path | None, typer.Option(help="TOML file with a [pipeline] table "

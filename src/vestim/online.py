@@ -55,11 +55,13 @@ SAMPLE_KEYS = ("t", "omega_fl", "omega_fr", "omega_rl", "omega_rr", "torque_fl",
 @njit(**_JIT)
 def step_kernel(s: np.ndarray, out: np.ndarray, fprm: np.ndarray, nl_prm: np.ndarray,
                 dynamic: bool,
-                att: np.ndarray, lon_prm: np.ndarray, lon_wm: np.ndarray, lon_wc: np.ndarray,
+                att: np.ndarray, att_prm: np.ndarray, lon_prm: np.ndarray, lon_wm: np.ndarray,
+                lon_wc: np.ndarray,
                 lon_x: np.ndarray, lon_P: np.ndarray, lon_ht: np.ndarray, lon_hw: np.ndarray,
                 xw: np.ndarray, yw: np.ndarray, q_lat: np.ndarray, r_lat: np.ndarray,
                 w4: np.ndarray, c4: np.ndarray, tau4: float, lat_x: np.ndarray,
-                lat_P: np.ndarray, lat_state: np.ndarray,
+                lat_P: np.ndarray, lat_state: np.ndarray, stiff_prm: np.ndarray,
+                stiff_state: np.ndarray,
                 ref_prm: np.ndarray, ref_x: np.ndarray, ref_P: np.ndarray, ref_hist: np.ndarray,
                 ref_state: np.ndarray, fused: bool, fus_x: np.ndarray, fus_P: np.ndarray,
                 fus_hist: np.ndarray, fus_state: np.ndarray, pstate: np.ndarray,
@@ -72,10 +74,12 @@ def step_kernel(s: np.ndarray, out: np.ndarray, fprm: np.ndarray, nl_prm: np.nda
     """One sample ``s`` (layout :data:`SAMPLE_KEYS` + δ_fl, δ_fr) through the pipeline; the
     output row (the column order of ``Pipeline.run``) is written to ``out``.
 
-    ``fprm`` = [roll_gain, pitch_gain, c_roll, c_pitch, f_rr, R, drag coefficient, I_z,
+    ``att_prm`` as :func:`~vestim.estimators.force.normal.attitude_kernel`'s ``prm``;
+    ``fprm`` = [unused ×4, f_rr, R, drag coefficient, I_z,
     load exponent, slip scale, C_y/F_z]; ``nl_prm`` from
     :func:`~vestim.estimators.force.normal.normal_load_params`; ``lon_prm`` = [I_w, R,
-    r_ω, r_T, q_acc, q_acc_high, q_T, ω̇_high, p0_acc, τ]; ``kf_prm`` = [κ, σ0, σ1, σ2,
+    r_ω, r_T, q_acc, q_acc_high, q_T, ω̇_high, p0_acc, τ, q_acc_innov, α, c_m, c_1];
+    ``kf_prm`` = [κ, σ0, σ1, σ2,
     r, r_high, step_ref, λ_u, λ_l, β_e, ω̇_th, min speed, μ release]; ``pstate`` =
     [t_prev, r_prev, fused filter still identical to the plain one (1/0)];
     ``fusion_prm`` = [η_front, w_s, w_range, ρ, λ_th].
@@ -92,13 +96,15 @@ def step_kernel(s: np.ndarray, out: np.ndarray, fprm: np.ndarray, nl_prm: np.nda
     # --- force stage (ForceEstimator.advance) ---
     roll = np.empty(1)
     pitch = np.empty(1)
+    roll_acc = np.empty(1)
+    pitch_acc = np.empty(1)
     attitude_kernel(t1, s[S_AX:S_AX + 1], s[S_AY:S_AY + 1], s[S_P:S_P + 1], s[S_Q:S_Q + 1],
-                    fprm[0], fprm[1], fprm[2], fprm[3], att, roll, pitch)
+                    r1, omega, att_prm, att, roll, pitch, roll_acc, pitch_acc)
     fxa, fya, fza = road_specific_force(s[S_AX:S_AX + 1], s[S_AY:S_AY + 1], s[S_AZ:S_AZ + 1],
                                         roll, pitch)
     f_x, f_y = fxa[0], fya[0]
     fz = normal_loads_kernel(fxa, fya, fza, roll, pitch, s[S_P:S_P + 1], s[S_Q:S_Q + 1],
-                             nl_prm, dynamic)
+                             roll_acc, pitch_acc, nl_prm, dynamic)
     m, lf, lr = nl_prm[0], nl_prm[9], nl_prm[10]
     teff = torque_less_rolling_resistance(torque, omega, fz, fprm[4] * radius)
     fx = np.empty((1, 4))
@@ -106,7 +112,8 @@ def step_kernel(s: np.ndarray, out: np.ndarray, fprm: np.ndarray, nl_prm: np.nda
     high = np.empty((1, 4), dtype=np.bool_)
     ukf_kernel(t1, omega, teff, lon_prm[0], lon_prm[1], lon_prm[2], lon_prm[3], lon_prm[4],
                lon_prm[5], lon_prm[6], lon_prm[7], lon_prm[8], lon_wm, lon_wc, lon_prm[9],
-               lon_x, lon_P, lon_ht, lon_hw, fx, sig_fx, high)
+               lon_x, lon_P, lon_ht, lon_hw, fx, sig_fx, high, lon_prm[10], lon_prm[11],
+               lon_prm[12], lon_prm[13])
     w_mean = 0.25 * (omega[0, 0] + omega[0, 1] + omega[0, 2] + omega[0, 3])
     drag = np.empty(1)
     drag[0] = fprm[6] * (radius * w_mean) ** 2
@@ -118,7 +125,9 @@ def step_kernel(s: np.ndarray, out: np.ndarray, fprm: np.ndarray, nl_prm: np.nda
     # --- velocity stage (Pipeline._advance) ---
     mu_x = normalised(fx, fz)
     mu_y = normalised(fy, fz)
-    axle = axle_slip_angles(fy, fz, fprm[10])
+    axle = np.empty((1, 2))
+    c_y = np.empty(1)
+    axle_slip_angles(t1, omega, r1, delta, fy, fz, stiff_prm, stiff_state, axle, c_y)
     none_v = np.full((1, 0), np.nan)
     v_ref = np.empty((1, 2))
     sig_ref = np.empty((1, 2))
@@ -243,6 +252,7 @@ def step_kernel(s: np.ndarray, out: np.ndarray, fprm: np.ndarray, nl_prm: np.nda
     out[k] = roll[0]
     out[k + 1] = pitch[0]
     out[k + 2] = bias[0, 0]
+    out[k + 3] = c_y[0]
 
 
 def build_step(pipe: Pipeline) -> tuple[Any, ...] | None:
@@ -254,16 +264,17 @@ def build_step(pipe: Pipeline) -> tuple[Any, ...] | None:
         return None
     fe = pipe.force
     veh = pipe.vehicle
-    b, a = veh.body, veh.aerodynamics
+    b = veh.body
     fc = fe.config
     lp = fc.lateral
-    fprm = np.array([fc.roll_gain, fc.pitch_gain, fe._c_roll, fe._c_pitch, a.rolling_resistance,
+    fprm = np.array([0.0, 0.0, 0.0, 0.0, fe.rolling_resistance,
                      b.wheel_radius, fe._drag_coef, b.yaw_inertia, lp.load_exponent,
-                     lp.slip_scale, pipe._cy_norm])
+                     lp.slip_scale, 0.0])
     lon = fe._lon
     u = lon.ukf
     lon_prm = np.array([lon.iw, lon.radius, u.r_omega, u.r_torque, u.q_acc, u.q_acc_high,
-                        u.q_torque, u.omega_dot_high, u.p0_acc, lon._tau])
+                        u.q_torque, u.omega_dot_high, u.p0_acc, lon._tau, u.q_acc_innov,
+                        u.innov_alpha, u.innov_mean, u.innov_one])
     ref, fus = pipe.reference, pipe.fused
     fused = cfg.velocity == "fused"
     corner = pipe.corner
@@ -290,9 +301,11 @@ def build_step(pipe: Pipeline) -> tuple[Any, ...] | None:
                            ap.threshold])
     ref_prm = np.append(ref._prm, ref.params.sigma_corner_slip)
     pstate = np.array([pipe._prev[0], pipe._prev[1], 1.0 if pipe._fused_is_reference else 0.0])
-    force = (fprm, normal_load_params(veh), fc.normal == "dynamic", fe._att, lon_prm, lon._wm,
+    force = (fprm, normal_load_params(veh), fc.normal == "dynamic", fe._att, fe._att_prm,
+             lon_prm, lon._wm,
              lon._wc, lon._x, lon._P, lon._hist_t, lon._hist_w, fe._xw, fe._yw, fe._q_lat,
-             fe._r_lat, fe._w4, fe._c4, float(fe._tau4), fe._lat_x, fe._lat_P, fe._lat_state)
+             fe._r_lat, fe._w4, fe._c4, float(fe._tau4), fe._lat_x, fe._lat_P, fe._lat_state,
+             pipe._stiff_prm, pipe._stiff_state)
     velocity = (ref_prm, ref._x, ref._P, ref._hist, ref._state, fused, fus._x, fus._P,
                 fus._hist, fus._state, pstate)
     return (*force, *velocity, *kf, cfg.fusion == "adaptive", fusion_prm)

@@ -49,7 +49,9 @@ from vestim.estimators.velocity.lpv_observer import LPVParams
 from vestim.estimators.velocity.reference import (
     ReferenceFilter,
     ReferenceParams,
+    StiffnessParams,
     axle_slip_angles,
+    stiffness_params,
 )
 from vestim.io.vehicle import Vehicle
 from vestim.models import kinematics as kin
@@ -90,16 +92,18 @@ class PipelineConfig:
             (001 eq. (34)–(35)), "opinion" (003 eq. (5)–(13); writes ``confidence_*``).
             Used by the corner methods and by "fused" for its corner measurement.
         reference: parameters of the reference filter.
+        cornering: the online cornering-stiffness regression of its v_y bounds.
         fusion_params: parameters of the fusion stage.
         gains: path of a gains file from ``vestim design lpv`` for the "lpv" observers
             (default: 001's constant gains).
     """
 
     force: str = "ukf"
-    normal: str = "dynamic"
+    normal: str = "static"
     velocity: str = "fused"
     fusion: str = "axle"
     reference: ReferenceParams = field(default_factory=ReferenceParams)
+    cornering: StiffnessParams = field(default_factory=StiffnessParams)
     fusion_params: FusionParams = field(default_factory=FusionParams)
     gains: str | None = None
 
@@ -124,7 +128,7 @@ class PipelineConfig:
         table = data.get("pipeline")
         if not isinstance(table, dict):
             raise PipelineConfigError(f"{path}: no [pipeline] table")
-        allowed = {f.name for f in fields(cls)} - {"reference", "fusion_params"}
+        allowed = {f.name for f in fields(cls)} - {"reference", "fusion_params", "cornering"}
         unknown = sorted(set(table) - allowed)
         if unknown:
             raise PipelineConfigError(f"{path}: [pipeline] has unknown key(s) {', '.join(unknown)};"
@@ -156,7 +160,10 @@ class Pipeline:
         self.config = config or PipelineConfig()
         b = vehicle.body
         self._xw, self._yw = kin.corner_positions(vehicle)
-        self._cy_norm = vehicle.tire.sigma0_y / vehicle.tire.kappa_y  # C_y / F_z, per rad
+        # Cornering stiffness per load: the [tire] table's σ0y/κy as the prior only.
+        self._stiff_prm = stiffness_params(vehicle.tire.sigma0_y / vehicle.tire.kappa_y,
+                                           self.config.cornering, b.wheel_radius, b.wheelbase)
+        self._stiff_state = np.zeros(9)
         self.force = ForceEstimator(vehicle, ForceConfig(longitudinal=self.config.force,
                                                          normal=self.config.normal))
         self.reference = ReferenceFilter(b.wheel_radius, b.lf, b.lr, self._xw, self._yw,
@@ -186,6 +193,7 @@ class Pipeline:
         if self.corner is not None:
             self.corner.reset()
         self._prev = np.array([np.nan, 0.0])
+        self._stiff_state[:] = 0.0
         self._fused_is_reference = True
         self._step_args = None
         self._step_rates = None
@@ -254,10 +262,13 @@ class Pipeline:
         res = self.force.advance(u)
         fz = res["fz"]
         mu_x = normalised(res["fx"], fz)
-        # Linear-tire axle slip angles with C_y = ΣF_z σ0y/κy of the [tire] table (000 eq. (16)).
-        axle_slip = axle_slip_angles(res["fy"], fz, self._cy_norm)
         method = self.config.velocity
         n = u.t.shape[0]
+        # Linear-tire axle slip angles with the cornering stiffness identified online.
+        axle_slip = np.empty((n, 2))
+        c_y = np.empty(n)
+        axle_slip_angles(u.t, u.omega, u.yaw_rate, u.delta, res["fy"], fz, self._stiff_prm,
+                         self._stiff_state, axle_slip, c_y)
         mu_x_c = np.ascontiguousarray(mu_x)
         if method == "kinematic":
             v = self.kinematic.advance(u.t, u.omega, res["f_x"], res["f_y"], u.yaw_rate)
@@ -303,6 +314,7 @@ class Pipeline:
         vx_i, vy_i = kin.cg_to_corners(v[:, 0], v[:, 1], u.yaw_rate, self._xw, self._yw)
         vxt, vyt = kin.to_tire_frame(vx_i, vy_i, u.delta)
         res.update({"v": v, "sigma_v": sig, "bias": bias, "vx_i": vx_i, "vy_i": vy_i,
+                    "cornering_stiffness": c_y,
                     "vxt": vxt, "vyt": vyt,
                     "slip_ratio": kin.slip_ratio(u.omega, vxt, self.vehicle.body.wheel_radius),
                     "slip_angle": kin.slip_angle(vxt, vyt)})
@@ -324,6 +336,7 @@ class Pipeline:
                    (names("slip_angle"), res["slip_angle"]), *force_groups(res)]
         if not np.all(np.isnan(res["bias"])):
             groups.append((["bias_ax"], res["bias"]))
+        groups.append((["cornering_stiffness"], res["cornering_stiffness"]))
         if "confidence" in res:
             groups.append((names("confidence"), res["confidence"]))
         return groups
@@ -368,7 +381,7 @@ class Pipeline:
                           "mu_x", "mu_y", "sigma_fx", "sigma_fy")
             self._step_names = ["t", "vx", "vy", "sigma_vx", "sigma_vy",
                                 *(f"{q}_{c}" for q in per_corner for c in CORNERS),
-                                "roll", "pitch", "bias_ax"]
+                                "roll", "pitch", "bias_ax", "cornering_stiffness"]
         try:
             vec = [float(sample[k]) for k in online.SAMPLE_KEYS[:13]]  # t … yaw_rate
             vec += [float(sample.get("roll_rate", np.nan)),
@@ -380,7 +393,7 @@ class Pipeline:
         out = np.empty(len(self._step_names))
         args = self._step_args
         online.step_kernel(s, out, *args)
-        pstate = args[31]
+        pstate = args[34]
         self._prev = pstate[:2]  # a view: the general path replaces it, never writes into it
         self._fused_is_reference = bool(pstate[2])
         if self.corner is not None and self.config.velocity == "fused":

@@ -187,7 +187,7 @@ def test_kernel_equals_the_generic_functions():
     part = pack_particles(x, mu, lam, b, pb)
     shared = np.array([gamma, nu])
     logwk = logw.copy()
-    alg1_kernel(y, u, active, bias_on, p, r_pk, q_pk, lo, hi, forget, 0.005, 0.0, model_error, part,
+    alg1_kernel(y, u, active, bias_on, p, r_pk, q_pk, 1.0, lo, hi, forget, 0.005, 0.0, model_error, part,
                 logwk, shared, state, out["xh"], out["xv"], out["wh"], out["wc"], out["bh"], out["ess"])
     x_r, mu_r, lam_r, b_r, pb_r, logw_r, gamma_r, nu_r, est = ref
     np.testing.assert_allclose(part[:, C_X:C_X + 3], x_r, rtol=1e-8)
@@ -221,7 +221,7 @@ def test_resampling_copies_whole_particles():
     pb = np.tile([0.05**2, 0.0, 0.05**2, 0.002**2], (n, 1))
     args = (np.array([[0.8, 2.1, 0.09]]), np.array([[0.015, 68.0, 67.0, 0.005]]), np.array([True]),
             np.array([True]), params.pack(), np.array([0.05**2, 0.0, 0.05**2, 0.003**2]), np.zeros(4),
-            np.full(3, -1e9), np.full(3, 1e9), 0.99, 0.005)
+            1.0, np.full(3, -1e9), np.full(3, 1e9), 0.99, 0.005)
     results = []
     for n_thr in (0.0, float(n)):
         part = pack_particles(x, mu, lam, np.zeros((n, 3)), pb)
@@ -255,7 +255,7 @@ def test_forgetting_per_period():
     outs = [np.empty((k, 3)), np.empty((k, 3)), np.empty((k, 3)), np.empty((k, 3, 3)),
             np.empty((k, 3)), np.empty(k)]
     alg1_kernel(y, u, np.ones(k, bool), np.zeros(k, bool), params.pack(), np.array([2.5e-3, 0, 2.5e-3, 9e-6]),
-                np.zeros(4), np.full(3, -1e9), np.full(3, 1e9), 0.99, 0.010, 0.0, np.zeros(3),
+                np.zeros(4), 1.0, np.full(3, -1e9), np.full(3, 1e9), 0.99, 0.010, 0.0, np.zeros(3),
                 pack_particles(x, np.zeros((n, 3)), lam, np.zeros((n, 3)), np.zeros((n, 4))),
                 np.full(n, -math.log(n)), shared, seed_state(np.random.default_rng(0)), *outs)
     lam_step = math.sqrt(0.99)

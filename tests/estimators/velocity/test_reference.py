@@ -79,6 +79,9 @@ def test_longitudinal_and_lateral_blocks_stay_decoupled() -> None:
     assert np.all(np.linalg.eigvalsh(P) > 0)
 
 
+@pytest.mark.xfail(strict=True, reason=(
+    'design change (issue 11): side_vy is now 1.0 m/s, so the linear-tire bound also pulls '
+    'on its allowed side: with a nominal stiffness 30 % off the allowed side is not known'))
 def test_saturated_axle_bound_lets_the_integral_carry_vy() -> None:
     # Sliding at the limit: the true v_y falls at 0.25 m/s² for 2 s (the kinematic f_y − r v_x
     # says so) to −0.5 m/s and stays there for 10 s, while the linear-tire slip angles,

@@ -43,7 +43,7 @@ from vestim.estimators.force import longitudinal as lon
 from vestim.estimators.force import normal as nrm
 from vestim.filters.ukf import ukf_weights
 from vestim.io.log import road_wheel_angles
-from vestim.io.vehicle import Vehicle
+from vestim.io.vehicle import Vehicle, default_aerodynamics
 from vestim.models import chassis
 
 TORQUES: tuple[str, ...] = tuple(f"torque_{c}" for c in CORNERS)
@@ -58,16 +58,24 @@ class ForceConfig:
     Attributes:
         longitudinal: "ukf" | "ukf_rw" | "pid" | "uio" | "naive".
         normal: "static" | "dynamic" elastic load transfer (see :mod:`.normal`).
-        roll_gain, pitch_gain: correction gains L_φ, L_θ of the attitude filter, 1/s.
+        roll_tau: crossover time constant τ_φ of the gyro/gravity roll filter, s
+            (:func:`.normal.attitude_kernel`).
+        roll_slide: gravity-roll disagreement e_φ (rad) at which the roll filter's gravity
+            correction is halved (a sliding car's v̇_y would otherwise read as roll).
+        pitch_gain: correction gain L_θ of the pitch filter, 1/s.
+        rate_filter_hz: corner frequency of the roll and pitch acceleration differentiators
+            whose I ω̇ terms enter the load transfer, Hz (:func:`.normal.attitude_kernel`).
     """
 
     longitudinal: str = "ukf"
-    normal: str = "dynamic"
+    normal: str = "static"
     ukf: lon.UKFParams = field(default_factory=lon.UKFParams)
     pid: lon.PIDParams = field(default_factory=lon.PIDParams)
     uio: lon.UIOParams = field(default_factory=lon.UIOParams)
     lateral: lat.LateralParams = field(default_factory=lat.LateralParams)
-    roll_gain: float = 2.0
+    roll_tau: float = 2.0
+    rate_filter_hz: float = 8.0
+    roll_slide: float = 0.03
     pitch_gain: float = 2.0
 
     def __post_init__(self) -> None:
@@ -255,6 +263,26 @@ def force_columns(t: np.ndarray, res: Mapping[str, np.ndarray]) -> dict[str, np.
     return {"t": t, **columns_from_groups(force_groups(res))}
 
 
+def file_rolling_resistance(vehicle: Vehicle) -> float:
+    """Rolling-resistance coefficient f the longitudinal force stage uses: the vehicle
+    file's ``[aerodynamics] rolling_resistance``, or 0 (000 eq. (1), no moment) when the
+    file has no ``[aerodynamics]`` table.
+
+    The table is the simulator's (shared/spec/log-format.md: the estimators need only
+    ``[vehicle]`` and ``[tire]``); its default f = 0.012 describes our simulator's tire, and
+    applying it to a car whose file does not state it biases F_x by f·F_z (≈ 40 N per
+    corner, 8 % of the 500 N floor, on the crossplant logs, whose plant has none).
+    :class:`~vestim.io.vehicle.Vehicle` does not record which tables the file had, so a
+    table equal to the documented defaults in all three values counts as absent.
+    """
+    a = vehicle.aerodynamics
+    defaults = default_aerodynamics()
+    if (a.drag_area, a.air_density, a.rolling_resistance) == (
+            defaults["drag_area"], defaults["air_density"], defaults["rolling_resistance"]):
+        return 0.0
+    return a.rolling_resistance
+
+
 class ForceEstimator:
     """Longitudinal, lateral and normal tire forces per corner (online or batch).
 
@@ -272,6 +300,10 @@ class ForceEstimator:
         b, s = vehicle.body, vehicle.suspension
         self._c_roll = vehicle.body.mass * (b.cg_height - b.roll_center_height) / s.roll_stiffness
         self._c_pitch = -b.mass * (b.cg_height - s.pitch_center_height) / s.pitch_stiffness
+        self._att_prm = np.array([self.config.roll_tau, self.config.pitch_gain, self._c_roll,
+                                  self._c_pitch, b.wheel_radius, self.config.rate_filter_hz,
+                                  {"fwd": 1.0, "rwd": 0.0}.get(b.drivetrain, -1.0),
+                                  self.config.roll_slide])
         self._xw = np.array([b.lf, b.lf, -b.lr, -b.lr])
         self._yw = 0.5 * np.array([b.track_f, -b.track_f, b.track_r, -b.track_r])
         self._w4, self._c4, self._tau4 = ukf_weights(4)
@@ -281,6 +313,7 @@ class ForceEstimator:
                                 lp.sigma_yaw**2, lp.sigma_split**2])
         a = vehicle.aerodynamics
         self._drag_coef = 0.5 * a.air_density * a.drag_area
+        self.rolling_resistance = file_rolling_resistance(vehicle)
         self.reset()
 
     def reset(self) -> None:
@@ -292,7 +325,7 @@ class ForceEstimator:
         # inertial force −I_w ω̇_i/R alone (every method is linear in the torque).
         self._lon_inertia = lon.LongitudinalEstimator(self.vehicle, cfg.longitudinal, cfg.ukf,
                                                       cfg.pid, cfg.uio)
-        self._att = np.zeros(4)
+        self._att = np.zeros(8)
         self._lat_x = np.zeros(lat.N_X)
         self._lat_P = np.zeros((lat.N_X, lat.N_X))
         self._lat_state = np.zeros(10)
@@ -332,14 +365,13 @@ class ForceEstimator:
         b = self.vehicle.body
         cfg = self.config
         self.note_sources(u.sources)
-        roll = np.empty(n)
-        pitch = np.empty(n)
-        nrm.attitude_kernel(u.t, u.ax, u.ay, u.roll_rate, u.pitch_rate, cfg.roll_gain,
-                            cfg.pitch_gain, self._c_roll, self._c_pitch, self._att, roll, pitch)
+        roll, pitch, roll_acc, pitch_acc = np.empty((4, n))
+        nrm.attitude_kernel(u.t, u.ax, u.ay, u.roll_rate, u.pitch_rate, u.yaw_rate, u.omega,
+                            self._att_prm, self._att, roll, pitch, roll_acc, pitch_acc)
         az = u.az if u.az_measured else nrm.level_road_az(u.ax, u.ay, roll, pitch)
         f_x, f_y, f_z = nrm.road_specific_force(u.ax, u.ay, az, roll, pitch)
-        fz = nrm.normal_loads(f_x, f_y, f_z, roll, pitch, u.roll_rate, u.pitch_rate,
-                              self.vehicle, cfg.normal)
+        fz = nrm.normal_loads(f_x, f_y, f_z, roll, pitch, u.roll_rate, u.pitch_rate, roll_acc,
+                              pitch_acc, self.vehicle, cfg.normal)
         if not u.torque_measured:
             # Equivalent net wheel torques from the chassis equation (models.chassis eq. (2)),
             # handed back in u so that later stages use the same torques. Its I_w Σω̇ term
@@ -354,10 +386,12 @@ class ForceEstimator:
         # Rolling resistance acts on the wheel as a moment f·R·F_z (the ground force
         # of a free-rolling tire is −f·F_z); 000 eq. (1) omits it, which biases F_x
         # by f·F_z ≈ 65 N per SUV corner. The estimators see the effective torque.
+        # f is the vehicle file's own value; without one it is 0 (000 eq. (1)), not
+        # the simulator's default (see file_rolling_resistance).
         # The moment fades out below |ω| = 3 rad/s (1 m/s): a sharper switch would
         # flip with the wheel-speed noise (σ 0.42 rad/s) at standstill.
         torque = chassis.torque_less_rolling_resistance(
-            u.torque, u.omega, fz, self.vehicle.aerodynamics.rolling_resistance * b.wheel_radius)
+            u.torque, u.omega, fz, self.rolling_resistance * b.wheel_radius)
         fx, sig_fx = self._lon.advance(u.t, u.omega, torque)
         drag = self._drag_coef * (b.wheel_radius * u.omega.mean(axis=1)) ** 2
         fy = np.empty((n, 4))

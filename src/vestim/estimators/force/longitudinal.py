@@ -56,6 +56,11 @@ class UKFParams:
         q_force_high: the same under the switching (``ukf_rw``).
         omega_dot_high: |ω̇| threshold of the switching, rad/s² (1.3 g at the SUV tire periphery).
         omega_dot_window: samples spanned by the ω̇ difference used for switching (and Δt).
+        q_acc_innov: ω̇ intensity while the wheel-speed innovations are inconsistent (``ukf``):
+            the innovation-driven switch, (rad/s²)²/s.
+        innov_alpha: weight of the newest normalised ω innovation in its running mean.
+        innov_mean: threshold of |running mean| in units of its white-noise standard deviation.
+        innov_one: threshold of one normalised ω innovation.
         p0_acc: initial variance of ω̇, (rad/s²)².
         p0_force: initial variance of F_x, N² (``ukf_rw``).
     """
@@ -69,6 +74,10 @@ class UKFParams:
     q_force_high: float = 1.0e6
     omega_dot_high: float = 40.0
     omega_dot_window: int = 10
+    q_acc_innov: float = 1.0e4
+    innov_alpha: float = 0.2
+    innov_mean: float = 3.0
+    innov_one: float = 4.0
     p0_acc: float = 100.0
     p0_force: float = 1.0e6
 
@@ -204,14 +213,25 @@ def ukf_kernel(t: np.ndarray, omega: np.ndarray, torque: np.ndarray, iw: float, 
                r_omega: float, r_torque: float, q_acc: float, q_acc_high: float,
                q_torque: float, omega_dot_high: float, p0_acc: float, wm: np.ndarray,
                wc: np.ndarray, tau: float, x: np.ndarray, P: np.ndarray, hist_t: np.ndarray,
-               hist_w: np.ndarray, fx: np.ndarray, sigma: np.ndarray, high: np.ndarray) -> None:
-    """Advance the four corner UKFs on x = [ω, ω̇, T] over a chunk (in place on x (4, 3), P (4, 3, 3)).
+               hist_w: np.ndarray, fx: np.ndarray, sigma: np.ndarray, high: np.ndarray,
+               q_acc_innov: float, innov_alpha: float, innov_mean: float,
+               innov_one: float) -> None:
+    """Advance the four corner UKFs on x = [ω, ω̇, T] over a chunk (in place on x (4, 5), P (4, 3, 3)).
 
     Process: ω_{k+1} = ω_k + Δt ω̇_k + ½Δt² … (ω̇ held), ω̇ and T random walks with
     intensities q_acc (q_acc_high while |Δω/Δt| over the history window exceeds
     ``omega_dot_high``: 004's switching) and q_torque. Measurements: ω (variance
     r_omega) and T (variance r_torque). Output F̂_x = (T̂ − I_w ω̇̂)/R_e with its
     one-sigma from the covariance. ``hist_t``/``hist_w`` as in :func:`ukf_rw_kernel`.
+
+    Innovation-driven switching (in addition to 004's |ω̇| switch): with
+    ν_k = (ω_k − ω̂_k|k−1)/√S_ωω the normalised wheel-speed innovation and
+    m_k = (1 − α) m_{k−1} + α ν_k its running mean, the ω̇ intensity is raised to
+    ``q_acc_innov`` for the update of sample k when |m_k| > c_m √(α/(2 − α)) (a
+    persistent one-sided innovation: ω̇ has moved, e.g. a torque chop at a saturated
+    tire) or |ν_k| > c_1 (one outlier). The switch decided at k also sets the
+    prediction intensity of k + 1. ``x[:, 3]`` holds m, ``x[:, 4]`` the switch
+    (1/0); ``x[:, :3]`` is the state.
     """
     n = t.shape[0]
     m = hist_t.shape[0]
@@ -223,12 +243,15 @@ def ukf_kernel(t: np.ndarray, omega: np.ndarray, torque: np.ndarray, iw: float, 
     zhat = np.empty(2)
     pzz = np.empty((2, 2))
     pxz = np.empty((3, 2))
+    sd_mean = np.sqrt(innov_alpha / (2.0 - innov_alpha))
     for k in range(n):
         if np.isnan(hist_t[0]):
             for c in range(4):
                 x[c, A_W] = omega[k, c]
                 x[c, A_A] = 0.0
                 x[c, A_T] = torque[k, c]
+                x[c, 3] = 0.0
+                x[c, 4] = 0.0
                 P[c, :, :] = 0.0
                 P[c, A_W, A_W] = r_omega
                 P[c, A_A, A_A] = p0_acc
@@ -241,7 +264,7 @@ def ukf_kernel(t: np.ndarray, omega: np.ndarray, torque: np.ndarray, iw: float, 
         dt = t[k] - hist_t[m - 1]
         for c in range(4):
             is_high = abs(_omega_dot(hist_t, hist_w, t[k], omega[k, c], c)) > omega_dot_high
-            sigma_points(x[c], P[c], tau, L, pts)
+            sigma_points(x[c, :3], P[c], tau, L, pts)
             for i in range(npts):
                 pts[i, A_W] += dt * pts[i, A_A]
             xm[:] = 0.0
@@ -254,12 +277,19 @@ def ukf_kernel(t: np.ndarray, omega: np.ndarray, torque: np.ndarray, iw: float, 
                     for q in range(3):
                         Pm[r, q] += wc[i] * (pts[i, r] - xm[r]) * (pts[i, q] - xm[q])
             q_a = q_acc_high if is_high else q_acc
+            was_innov = x[c, 4] > 0.5
+            if was_innov:
+                q_a = max(q_a, q_acc_innov)
             # ω integrates ω̇: a white ω̇ increment over Δt adds Δt³/3 to var(ω).
-            Pm[A_W, A_W] += q_a * dt**3 / 3.0
-            Pm[A_W, A_A] += q_a * dt**2 / 2.0
-            Pm[A_A, A_W] += q_a * dt**2 / 2.0
-            Pm[A_A, A_A] += q_a * dt
+            _add_acc_noise(Pm, q_a, dt)
             Pm[A_T, A_T] += q_torque * dt
+            # Innovation-driven switch: test this sample's normalised ω innovation.
+            nu = (omega[k, c] - xm[A_W]) / np.sqrt(Pm[A_W, A_W] + r_omega)
+            x[c, 3] = (1.0 - innov_alpha) * x[c, 3] + innov_alpha * nu
+            now_innov = abs(x[c, 3]) > innov_mean * sd_mean or abs(nu) > innov_one
+            if now_innov and not was_innov and q_acc_innov > q_a:
+                _add_acc_noise(Pm, q_acc_innov - q_a, dt)
+            x[c, 4] = 1.0 if now_innov else 0.0
             # Update with [ω, T]. The measurement selects state components, so the
             # sigma-point sums of 000 eq. (11) equal the blocks of P̄ exactly
             # (Σ W^c (χ − x̄)(χ − x̄)ᵀ = P̄ for these weights): evaluated in closed form.
@@ -295,8 +325,17 @@ def ukf_kernel(t: np.ndarray, omega: np.ndarray, torque: np.ndarray, iw: float, 
             fx[k, c] = (x[c, A_T] - iw * x[c, A_A]) / radius
             var = (P[c, A_T, A_T] - 2.0 * iw * P[c, A_T, A_A] + iw * iw * P[c, A_A, A_A])
             sigma[k, c] = np.sqrt(max(var, 0.0)) / radius
-            high[k, c] = is_high
+            high[k, c] = is_high or now_innov
         _push(hist_t, hist_w, t[k], omega[k])
+
+
+@njit(**_JIT)
+def _add_acc_noise(Pm: np.ndarray, q: float, dt: float) -> None:
+    """Add a white-ω̇ random walk of intensity q over Δt to the [ω, ω̇] block of P̄."""
+    Pm[A_W, A_W] += q * dt**3 / 3.0
+    Pm[A_W, A_A] += q * dt**2 / 2.0
+    Pm[A_A, A_W] += q * dt**2 / 2.0
+    Pm[A_A, A_A] += q * dt
 
 
 # ----------------------------------------------------------------- PID observer
@@ -442,7 +481,8 @@ class LongitudinalEstimator:
         """Forget the state; the next sample initialises it."""
         window = self.ukf.omega_dot_window
         dim = 3 if self.method == "ukf" else 2
-        self._x = np.zeros((4, dim))
+        # ukf: columns 3, 4 hold the innovation switch's running mean and flag
+        self._x = np.zeros((4, 5 if self.method == "ukf" else dim))
         self._P = np.zeros((4, dim, dim))
         self._hist_t = np.full(window, np.nan)
         self._hist_w = np.zeros((window, 4))
@@ -462,7 +502,8 @@ class LongitudinalEstimator:
             high = np.empty((n, 4), dtype=np.bool_)
             ukf_kernel(t, omega, torque, self.iw, self.radius, u.r_omega, u.r_torque, u.q_acc,
                        u.q_acc_high, u.q_torque, u.omega_dot_high, u.p0_acc, self._wm, self._wc,
-                       self._tau, self._x, self._P, self._hist_t, self._hist_w, fx, sigma, high)
+                       self._tau, self._x, self._P, self._hist_t, self._hist_w, fx, sigma, high,
+                       u.q_acc_innov, u.innov_alpha, u.innov_mean, u.innov_one)
         elif self.method == "ukf_rw":
             high = np.empty((n, 4), dtype=np.bool_)
             ukf_rw_kernel(t, omega, torque, self.iw, self.radius, u.r_omega, u.r_torque,

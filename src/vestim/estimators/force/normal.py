@@ -52,28 +52,79 @@ MODES: tuple[str, ...] = ("static", "dynamic")
 
 @njit(**_JIT)
 def attitude_kernel(t: np.ndarray, ax: np.ndarray, ay: np.ndarray, p: np.ndarray,
-                    q: np.ndarray, roll_gain: float, pitch_gain: float, c_roll: float,
-                    c_pitch: float, state: np.ndarray, roll: np.ndarray,
-                    pitch: np.ndarray) -> None:
-    """Complementary attitude filter over a chunk, in place on ``state`` = [φ̂, θ̂, t_prev, started].
+                    q: np.ndarray, r: np.ndarray, omega: np.ndarray, prm: np.ndarray,
+                    state: np.ndarray, roll: np.ndarray, pitch: np.ndarray,
+                    roll_acc: np.ndarray, pitch_acc: np.ndarray) -> None:
+    """Attitude filter over a chunk, in place on ``state`` = [φ̂, θ̂, t_prev, started,
+    p̄, ṗ̄, q̄, q̇̄].
 
-    c_roll = m(h − h_rc)/k_φ and c_pitch = −m(h − h_pc)/k_θ map a_y, a_x to the
-    quasi-static angles (rad per m/s²). NaN rates mean "no rate sensor": the
-    quasi-static angle is used directly.
+    ``prm`` = [τ_φ, L_θ, c_roll, c_pitch, R, f_acc, undriven axle (0 front, 1 rear, −1
+    none), e_φ].
+
+    Roll, with a roll-rate channel, is a complementary filter of the gyro and gravity that
+    needs no suspension parameters:
+        φ̂̇ = p + r tan θ̂ + (φ_g − φ̂)/(τ_φ (1 + (e/e_φ)²)),   φ_g = asin((a_y − r v_w)/g),
+    with e = φ_g − φ̂. p + r tan θ is the Euler roll rate (the gyro measures body rates);
+    φ_g is the tilt the IMU's lateral specific force shows beyond the centripetal
+    acceleration r·v_x (v_w: the mean R ω of the undriven axle, or of the two middle
+    wheels with four driven). φ_g also holds the sideslip acceleration v̇_y, the
+    accelerometer bias and the yaw-gyro bias times speed; τ_φ sets the crossover below
+    which those are accepted (v̇_y averages out, the biases are ~0.3°). A sliding car has
+    a sustained v̇_y that φ_g would read as roll, so the correction fades with its own size
+    (Cauchy weight, e_φ), and φ_g is clipped to the roll a lateral load can cause,
+    |φ_g| ≤ 0.02 |a_y| + 0.01 rad (0.02 rad per m/s² is softer than any passenger car).
+
+    Pitch is the quasi-static model θ_ss = c_pitch a_x corrected by the pitch rate with
+    gain L_θ. Without a roll rate the quasi-static roll φ_ss = c_roll a_y is used sample by
+    sample (NaN rates mean "no rate sensor"); c_roll, c_pitch = m(h − h_c)/k of the
+    [suspension] table (rad per m/s²).
+
+    ``roll_acc``, ``pitch_acc`` (rad/s²): the angular accelerations ṗ, q̇ of the body from
+    the rate gyros through a critically damped second-order low-pass differentiator of
+    corner frequency f_acc (Hz; 0 where the rate is missing). A gyro with 0.005 rad/s of
+    white noise at 200 Hz gives ≈ 0.05 rad/s² of noise at 8 Hz.
     """
+    tau, pitch_gain, c_roll, c_pitch, radius = prm[0], prm[1], prm[2], prm[3], prm[4]
+    wn = 2.0 * np.pi * prm[5]
+    free = int(prm[6])
+    e_slide = prm[7]
+    k_max, phi_0 = 0.02, 0.01
+    w = np.empty(4)
     for k in range(t.shape[0]):
-        phi_ss = c_roll * ay[k]
+        if free >= 0:
+            v_w = 0.5 * radius * (omega[k, 2 * free] + omega[k, 2 * free + 1])
+        else:
+            for i in range(4):
+                w[i] = omega[k, i]
+            w.sort()
+            v_w = 0.5 * radius * (w[1] + w[2])
+        s_g = (ay[k] - r[k] * v_w) / G
+        # A body rolls with its lateral load: |φ| ≤ k_max |a_y| + φ_0 (k_max 0.02 rad per
+        # m/s², softer than any passenger car; φ_0 for bank and sensor bias).
+        lim = min(k_max * abs(ay[k]) + phi_0, 0.5)
+        phi_g = np.arcsin(min(max(s_g, -lim), lim))
         th_ss = c_pitch * ax[k]
         if state[3] == 0.0:
-            state[0] = phi_ss
+            state[0] = phi_g if not np.isnan(p[k]) else c_roll * ay[k]
             state[1] = th_ss
             state[3] = 1.0
+            state[4] = 0.0 if np.isnan(p[k]) else p[k]
+            state[6] = 0.0 if np.isnan(q[k]) else q[k]
+            state[5] = 0.0
+            state[7] = 0.0
         else:
             dt = t[k] - state[2]
+            # Second-order differentiators (semi-implicit Euler, stable for ω_n dt < 2).
+            for j, z in ((4, p[k]), (6, q[k])):
+                if not np.isnan(z):
+                    state[j + 1] += dt * (wn * wn * (z - state[j]) - 2.0 * wn * state[j + 1])
+                    state[j] += dt * state[j + 1]
             if np.isnan(p[k]):
-                state[0] = phi_ss
+                state[0] = c_roll * ay[k]
             else:
-                state[0] += dt * (p[k] + roll_gain * (phi_ss - state[0]))
+                rate = p[k] + r[k] * np.tan(state[1])
+                e = (phi_g - state[0]) / e_slide
+                state[0] += dt * (rate + (phi_g - state[0]) / (tau * (1.0 + e * e)))
             if np.isnan(q[k]):
                 state[1] = th_ss
             else:
@@ -81,6 +132,8 @@ def attitude_kernel(t: np.ndarray, ax: np.ndarray, ay: np.ndarray, p: np.ndarray
         state[2] = t[k]
         roll[k] = state[0]
         pitch[k] = state[1]
+        roll_acc[k] = state[5]
+        pitch_acc[k] = state[7]
 
 
 @njit(**_JIT)
@@ -118,18 +171,19 @@ def level_road_az(ax: np.ndarray, ay: np.ndarray, roll: np.ndarray,
 
 def normal_load_params(vehicle: Vehicle) -> np.ndarray:
     """Parameters of :func:`normal_loads_kernel`: [m, L, h, h_pc, h_rc, k_θ, c_θ, k_φ, c_φ,
-    l_f, l_r, front roll-stiffness share, t_f, t_r] (SI) from the vehicle file."""
+    l_f, l_r, front roll-stiffness share, t_f, t_r, I_x, I_y] (SI) from the vehicle file."""
     b, s = vehicle.body, vehicle.suspension
     return np.array([b.mass, b.wheelbase, b.cg_height, s.pitch_center_height,
                      b.roll_center_height, s.pitch_stiffness, s.pitch_damping, s.roll_stiffness,
                      s.roll_damping, b.lf, b.lr, s.roll_stiffness_front_share, b.track_f,
-                     b.track_r])
+                     b.track_r, s.roll_inertia, s.pitch_inertia])
 
 
 @njit(**_JIT)
 def normal_loads_kernel(f_x: np.ndarray, f_y: np.ndarray, f_z: np.ndarray, roll: np.ndarray,
                         pitch: np.ndarray, roll_rate: np.ndarray, pitch_rate: np.ndarray,
-                        prm: np.ndarray, dynamic: bool) -> np.ndarray:
+                        roll_acc: np.ndarray, pitch_acc: np.ndarray, prm: np.ndarray,
+                        dynamic: bool) -> np.ndarray:
     """Normal load per corner (n, 4) in N; ``prm`` from :func:`normal_load_params`.
 
     See the module docstring for the equations. In dynamic mode a NaN rate falls back to
@@ -138,11 +192,14 @@ def normal_loads_kernel(f_x: np.ndarray, f_y: np.ndarray, f_z: np.ndarray, roll:
     m, L, h, h_pc, h_rc = prm[0], prm[1], prm[2], prm[3], prm[4]
     k_th, c_th, k_ph, c_ph = prm[5], prm[6], prm[7], prm[8]
     lf, lr, sf, t_f, t_r = prm[9], prm[10], prm[11], prm[12], prm[13]
+    i_x, i_y = prm[14], prm[15]
     n = f_x.shape[0]
     out = np.empty((n, 4))
     for k in range(n):
-        m_pitch = -m * (h - h_pc) * f_x[k]
-        m_roll = m * (h - h_rc) * (f_y[k] + f_z[k] * np.sin(roll[k]))
+        # Quasi-static moments less the body's angular inertia (the suspension carries
+        # m h' a − I ω̇ of the sprung-body balance I ω̇ + c ω + k φ = m h' a).
+        m_pitch = -m * (h - h_pc) * f_x[k] - i_y * pitch_acc[k]
+        m_roll = m * (h - h_rc) * (f_y[k] + f_z[k] * np.sin(roll[k])) - i_x * roll_acc[k]
         if dynamic:
             if not np.isnan(pitch_rate[k]):
                 m_pitch = k_th * pitch[k] + c_th * pitch_rate[k]
@@ -162,6 +219,7 @@ def normal_loads_kernel(f_x: np.ndarray, f_y: np.ndarray, f_z: np.ndarray, roll:
 
 def normal_loads(f_x: np.ndarray, f_y: np.ndarray, f_z: np.ndarray, roll: np.ndarray,
                  pitch: np.ndarray, roll_rate: np.ndarray, pitch_rate: np.ndarray,
+                 roll_acc: np.ndarray, pitch_acc: np.ndarray,
                  vehicle: Vehicle, mode: str = "static") -> np.ndarray:
     """Normal load per corner (n, 4) in N from road-frame specific force and body angles.
 
@@ -171,7 +229,8 @@ def normal_loads(f_x: np.ndarray, f_y: np.ndarray, f_z: np.ndarray, roll: np.nda
     if mode not in MODES:
         raise ValueError(f"normal-load mode {mode!r}: use one of {', '.join(MODES)}")
     arrays = [np.ascontiguousarray(a, dtype=float) for a in (f_x, f_y, f_z, roll, pitch,
-                                                              roll_rate, pitch_rate)]
+                                                              roll_rate, pitch_rate, roll_acc,
+                                                              pitch_acc)]
     return normal_loads_kernel(*arrays, normal_load_params(vehicle), mode == "dynamic")
 
 

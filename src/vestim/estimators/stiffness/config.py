@@ -121,6 +121,11 @@ class StiffnessConfig:
             per-step λ at the log rate.
         resample_threshold: N_thr/N of Algorithm 1, line 8.
         gamma0, nu0: initial NiW statistics γ_0 and ν_0 (ν_0 > 4 so that eq. (27b) exists).
+        initial_noise_sd: initial per-step noise one-sigma √diag(Λ_0/(ν_0 − 4)) relative to the
+            nominal stiffness (0: the prior sigma, as before); the level's uncertainty is the
+            spread of the particles' μ̂_0 (docs/methods_stiffness.md).
+        bias_correlation_time: s; the bias update (30) counts one residual per this time
+            (its R + d Σ̂ dᵀ + H P_x Hᵀ times τ_c/T_s; 0 is eq. (30) as printed).
         accel_noise, gyro_noise: one-sigma white noise of the IMU, m/s² and rad/s (R).
         accel_bias_sd, gyro_bias_sd: one-sigma of the initial bias, m/s² and rad/s (P_0).
             Zero, with zero random walk, fixes the bias at zero (002 Sec. VI-A's
@@ -138,6 +143,11 @@ class StiffnessConfig:
         wheel_speed_cutoff: Hz, first-order causal low-pass on the axle-mean wheel speeds
             (0 disables; the slip of eq. (3) is noise-sensitive: 0.42 rad/s of wheel-speed
             noise is 0.6 % of slip at 22 m/s).
+        attitude_from_rates: measure the roll and pitch gradients of 002 Sec. II-A from the
+            log's ``roll_rate`` / ``pitch_rate`` where present (:func:`~vestim.estimators.
+            stiffness.inputs.attitude_scale`) instead of taking them from ``[suspension]``.
+        attitude_cutoff: Hz, high-pass of that regression (removes the integrated gyro bias).
+        attitude_prior_weight: s·(m/s²)², weight of the ``[suspension]`` gradient in it.
         settle_time: s; the filter is not active during the first ``settle_time`` of the
             log, while the state posterior converges from P_0 (a 1 m/s error of v_x is a
             4.5 % slip error at 22 m/s, which the statistics would otherwise learn as ΔC^x).
@@ -160,16 +170,21 @@ class StiffnessConfig:
     forgetting_period: float = 0.0
     resample_threshold: float = 1.0 / 3.0
     gamma0: float = 0.1
+    initial_noise_sd: float = 0.1
     nu0: float = 20.0
     accel_noise: float = 0.05
     gyro_noise: float = 0.003
     accel_bias_sd: float = 0.05
     gyro_bias_sd: float = 0.002
     accel_bias_walk: float = 3e-4
+    bias_correlation_time: float = 5.0
     gyro_bias_walk: float = 1.5e-5
     model_error: tuple[float, float, float] = (0.0, 0.2, 0.1)
     initial_state_sd: tuple[float, float, float] = (1.0, 1.0, math.pi / 180.0)
     wheel_speed_cutoff: float = 8.0
+    attitude_from_rates: bool = True
+    attitude_cutoff: float = 0.1
+    attitude_prior_weight: float = 1.0
     settle_time: float = 1.0
     v_min: float = 5.0
     delta_min: float = 0.002

@@ -131,6 +131,11 @@ class _Setup:
         qa = self.config.accel_bias_walk**2 * ts
         return np.array([qa, 0.0, qa, self.config.gyro_bias_walk**2 * ts])
 
+    def bias_inflation(self, inputs: StiffnessInputs) -> float:
+        """Steps per ``bias_correlation_time`` (at least 1): the bias update's residual inflation."""
+        ts = float(np.median(inputs.u[:, U_DT]))
+        return max(1.0, self.config.bias_correlation_time / ts)
+
     def forgetting_period(self, inputs: StiffnessInputs) -> float:
         """Seconds over which the statistics forget by λ (eq. (20)); see :class:`StiffnessConfig`."""
         c = self.config
@@ -151,8 +156,8 @@ class _Setup:
                               np.hypot(kr * w_sd[:, W_CX], tr * w_sd[:, W_CYR]),
                               w_sd[:, W_CYF], w_sd[:, W_CYR]])
         bias_raw = bias.copy()
-        bias_raw[:, 0] *= inputs.accel_scale[0]
-        bias_raw[:, 1] *= inputs.accel_scale[1]
+        bias_raw[:, 0] *= inputs.accel_scale[:, 0]
+        bias_raw[:, 1] *= inputs.accel_scale[:, 1]
         return StiffnessResult(t=inputs.t, stiffness=stiff, stiffness_sd=sd, state=state,
                                state_sd=state_sd, bias=bias_raw, active=inputs.active,
                                ess=ess, n_resampled=n_resampled, method=method,
@@ -191,9 +196,11 @@ class NoiseAdaptivePF(_Setup):
         mu = rng.standard_normal((n, N_W)) * self.sigma_w
         mu = np.clip(mu, self.lo, self.hi)
         lam = np.zeros((n, N_LAM))
-        lam[:, L00] = (c.nu0 - N_W - 1.0) * self.sigma_w[0] ** 2
-        lam[:, L11] = (c.nu0 - N_W - 1.0) * self.sigma_w[1] ** 2
-        lam[:, L22] = (c.nu0 - N_W - 1.0) * self.sigma_w[2] ** 2
+        sd0 = (self.sigma_w if c.initial_noise_sd <= 0.0
+               else c.initial_noise_sd * self.nominal_w)
+        lam[:, L00] = (c.nu0 - N_W - 1.0) * sd0[0] ** 2
+        lam[:, L11] = (c.nu0 - N_W - 1.0) * sd0[1] ** 2
+        lam[:, L22] = (c.nu0 - N_W - 1.0) * sd0[2] ** 2
         b = np.zeros((n, 3))
         pb = np.zeros((n, N_PB))
         pb[:, PXX] = c.accel_bias_sd**2
@@ -209,7 +216,8 @@ class NoiseAdaptivePF(_Setup):
         b_hat = np.empty((k, 3))
         ess = np.empty(k)
         n_res = alg1_kernel(inputs.y, inputs.u, inputs.active, inputs.settled, self.p, self.r_pk,
-                            self.q_pk(inputs), self.lo, self.hi, c.forgetting,
+                            self.q_pk(inputs), self.bias_inflation(inputs), self.lo, self.hi,
+                            c.forgetting,
                             self.forgetting_period(inputs), c.resample_threshold * n,
                             np.asarray(c.model_error, dtype=float), part, logw, shared,
                             seed_state(rng), x_hat, x_var, w_hat, w_cov, b_hat, ess)

@@ -2,7 +2,8 @@
 
 Reads only the measured channels it needs (never a ``ref_`` column):
 ``t``, ``omega_fl`` … ``omega_rr``, ``ax``, ``ay``, ``yaw_rate`` and a steering
-channel (via :func:`vestim.io.road_wheel_angles`).
+channel (via :func:`vestim.io.road_wheel_angles`); ``roll_rate`` and ``pitch_rate``
+when the log has them (roll and pitch compensation, :func:`attitude_scale`).
 """
 
 from __future__ import annotations
@@ -11,6 +12,7 @@ from dataclasses import dataclass
 
 import numpy as np
 import pandas as pd
+from scipy.signal import butter, lfilter, lfilter_zi
 
 from vestim.constants import CORNERS, G
 from vestim.errors import LogFormatError
@@ -28,6 +30,11 @@ from vestim.estimators.stiffness.model import (
 from vestim.io import road_wheel_angles
 from vestim.io.vehicle import Vehicle
 
+ATTITUDE_BAND_TOP = 2.0
+"""Hz, upper edge of the band-pass of :func:`attitude_scale` (body roll and pitch of a car
+under driver inputs lie below it; the 1.5–3 Hz suspension modes are attenuated alike on both
+sides of the regression)."""
+
 REQUIRED: tuple[str, ...] = ("t", *(f"omega_{c}" for c in CORNERS), "ax", "ay", "yaw_rate")
 """Columns the stiffness estimators read, besides a steering channel."""
 
@@ -43,7 +50,8 @@ class StiffnessInputs:
             compensation, 002 Sec. II-A), m/s², m/s², rad/s.
         active: (K,) activation flags of 002 Sec. V (statistics update and forgetting).
         settled: (K,) False during the first ``settle_time`` s: bias filter frozen too.
-        accel_scale: (2,) the factors (1 + c_θ g, 1 + c_φ g) dividing a_x, a_y.
+        accel_scale: (K, 2) the factors (1 + c_θ g, 1 + c_φ g) dividing a_x, a_y at each
+            sample (:func:`attitude_scale`; constant where the log has no body rates).
         speed: (K,) m/s, R·ω of the slowest axle (initial v_x and activation).
     """
 
@@ -82,6 +90,47 @@ def lowpass(x: np.ndarray, t: np.ndarray, cutoff: float) -> np.ndarray:
     return out
 
 
+def attitude_scale(t: np.ndarray, rate: np.ndarray, accel: np.ndarray, sign: float,
+                   c_prior: float, cutoff: float, prior_weight: float) -> np.ndarray:
+    """Causal estimate of the factor 1 + c g by which a body-fixed accelerometer overreads.
+
+    002 Sec. II-A divides the measured lateral specific force by (1 + c_φ g), with c_φ the
+    steady-state roll gradient (φ = c_φ a_y); the same holds for pitch on a_x with
+    c_θ = −θ/a_x (θ > 0 nose down, the IMU reads a_x − g θ): the attitude angle is
+    s·c·a with s = +1 for roll and −1 for pitch. The gradient is a suspension property that a vehicle
+    file may not give (the loader then fills a generic 1.5 Hz suspension, which was 12 %
+    off in a_y on the cross-plant Vanagon, 8 % on the Escort). Where the log has the body
+    rate, the gradient is measured instead: the attitude angle is the integral of the rate,
+    the measured specific force is a(1 + c g) = a/(1 − k g) with s·k the regression
+    coefficient of the angle on the *measured* specific force, and k is the running least-
+    squares slope of the two signals after the same Butterworth band-pass (``cutoff`` Hz to
+    :data:`ATTITUDE_BAND_TOP`), which removes the integrated gyro bias (a ramp) and the
+    accelerometer bias, keeps most of the accelerometer noise out of the regression (noise
+    alone pulls the slope towards 0) and leaves the slope of a static relation unchanged.
+    Causal: the slope at sample k uses samples 0…k only, with the prior gradient counted as
+    ``prior_weight`` s·(m/s²)² of excitation.
+
+    Args:
+        t: (K,) s. rate: (K,) body rate (rad/s). accel: (K,) measured specific force (m/s²).
+        sign: +1 (roll, a_y) or −1 (pitch, a_x). c_prior: prior gradient, rad per m/s².
+
+    Returns:
+        (K,) the factor 1 + c g at each sample.
+    """
+    dt = np.diff(t, prepend=t[0])
+    angle = np.cumsum(0.5 * (rate + np.concatenate([rate[:1], rate[:-1]])) * dt)
+    ts = float(np.median(np.diff(t)))
+    nyq = 0.5 / ts
+    b, a = butter(2, [min(cutoff / nyq, 0.5), min(ATTITUDE_BAND_TOP / nyq, 0.99)], btype="bandpass")
+    zi = lfilter_zi(b, a)
+    ang_hp = lfilter(b, a, angle, zi=zi * angle[0])[0]
+    acc_hp = lfilter(b, a, accel, zi=zi * accel[0])[0]
+    k_prior = c_prior / (1.0 + c_prior * G)
+    w0 = prior_weight / ts
+    k = (sign * np.cumsum(ang_hp * acc_hp) + w0 * k_prior) / (np.cumsum(acc_hp * acc_hp) + w0)
+    return 1.0 / (1.0 - k * G)
+
+
 def prepare_inputs(log: pd.DataFrame, vehicle: Vehicle, config: StiffnessConfig) -> StiffnessInputs:
     """Build :class:`StiffnessInputs` from a spec log.
 
@@ -112,10 +161,17 @@ def prepare_inputs(log: pd.DataFrame, vehicle: Vehicle, config: StiffnessConfig)
     u[:, U_OMEGA_R] = om_r
     u[:-1, U_DT] = dt
     u[-1, U_DT] = dt[-1]
-    scale = np.array([1.0 + pitch_gradient(vehicle) * G, 1.0 + roll_gradient(vehicle) * G])
+    scale = np.empty((t.shape[0], 2))
+    for j, (rate, acc, sgn, c0) in enumerate((("pitch_rate", ax, -1.0, pitch_gradient(vehicle)),
+                                               ("roll_rate", ay, 1.0, roll_gradient(vehicle)))):
+        if config.attitude_from_rates and rate in log.columns:
+            scale[:, j] = attitude_scale(t, _column(log, rate), acc, sgn, c0,
+                                         config.attitude_cutoff, config.attitude_prior_weight)
+        else:
+            scale[:, j] = 1.0 + c0 * G
     y = np.empty((t.shape[0], N_MEAS))
-    y[:, 0] = ax / scale[0]
-    y[:, 1] = ay / scale[1]
+    y[:, 0] = ax / scale[:, 0]
+    y[:, 1] = ay / scale[:, 1]
     y[:, 2] = yaw_rate
     rw_f = vehicle.body.wheel_radius * om_f
     rw_r = vehicle.body.wheel_radius * om_r

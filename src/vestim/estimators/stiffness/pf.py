@@ -348,8 +348,8 @@ def state_uncertainty(q: np.ndarray, x: np.ndarray, x_mean: np.ndarray, delta: f
 @njit(**_FAST)
 def alg1_kernel(y: np.ndarray, u: np.ndarray, active: np.ndarray, bias_on: np.ndarray,
                 p: np.ndarray,
-                r_pk: np.ndarray, q_pk: np.ndarray, lo: np.ndarray, hi: np.ndarray,
-                forgetting: float, forgetting_period: float, n_thr: float,
+                r_pk: np.ndarray, q_pk: np.ndarray, bias_inflation: float, lo: np.ndarray,
+                hi: np.ndarray, forgetting: float, forgetting_period: float, n_thr: float,
                 model_error: np.ndarray, part: np.ndarray, logw: np.ndarray, shared: np.ndarray,
                 rng_state: np.ndarray,
                 x_hat: np.ndarray, x_var: np.ndarray, w_hat: np.ndarray, w_cov: np.ndarray,
@@ -362,6 +362,9 @@ def alg1_kernel(y: np.ndarray, u: np.ndarray, active: np.ndarray, bias_on: np.nd
         bias_on: (K,) bool; where False the bias filter is frozen (no eq. (29)–(30)).
         p: model parameters (``model.P_*``).
         r_pk, q_pk: R and Q of eq. (11)–(12), packed like P (m²/s⁴, rad²/s²; Q per step).
+        bias_inflation: factor (≥ 1) on the residual covariance R + d Σ̂ dᵀ + H P_x Hᵀ of the
+            bias update (30) only (not of the weights): the residuals are correlated over
+            about ``bias_inflation`` steps (see :func:`bias_kalman`); 1 is eq. (30).
         lo, hi: (3,) bounds of the deviation w (projection, Sec. V).
         forgetting: λ of eq. (20) per ``forgetting_period`` seconds (see the module
             docstring); a step of length T_s forgets by λ^(T_s/period).
@@ -403,6 +406,11 @@ def alg1_kernel(y: np.ndarray, u: np.ndarray, active: np.ndarray, bias_on: np.nd
     r01 = r_pk[PXY]
     r11 = r_pk[PYY]
     rrr = r_pk[PRR]
+    bi = max(bias_inflation, 1.0)
+    br00 = bi * r00
+    br01 = bi * r01
+    br11 = bi * r11
+    brrr = bi * rrr
     lo0, lo1, lo2 = lo[W_CX], lo[W_CYF], lo[W_CYR]
     hi0, hi1, hi2 = hi[W_CX], hi[W_CYF], hi[W_CYR]
     # q holds the normalised weights after the previous step's resampling (for b_hat)
@@ -458,6 +466,10 @@ def alg1_kernel(y: np.ndarray, u: np.ndarray, active: np.ndarray, bias_on: np.nd
         bh1 = 0.0
         bh2 = 0.0
         fill_normals(rng_state, nrm)
+        bu00 = bi * x_unc[PXX]
+        bu01 = bi * x_unc[PXY]
+        bu11 = bi * x_unc[PYY]
+        burr = bi * x_unc[PRR]
         for i in range(n_part):
             if finish:
                 # ---- lines 14–20 of step k − 1 (their turn comes before lines 2–5 of step k):
@@ -470,9 +482,9 @@ def alg1_kernel(y: np.ndarray, u: np.ndarray, active: np.ndarray, bias_on: np.nd
                                      part[i, C_PB + PXX], part[i, C_PB + PXY], part[i, C_PB + PYY],
                                      part[i, C_PB + PRR],
                                      part[i, C_EB], part[i, C_EB + 1], part[i, C_EB + 2],
-                                     part[i, C_SB + PXX], part[i, C_SB + PXY], part[i, C_SB + PYY],
-                                     r00, r01, r11, rrr, x_unc[PXX], x_unc[PXY], x_unc[PYY],
-                                     x_unc[PRR])
+                                     bi * part[i, C_SB + PXX], bi * part[i, C_SB + PXY],
+                                     bi * part[i, C_SB + PYY], br00, br01, br11, brrr,
+                                     bu00, bu01, bu11, burr)
                     part[i, C_B] = nb[0]
                     part[i, C_B + 1] = nb[1]
                     part[i, C_B + 2] = nb[2]

@@ -100,10 +100,10 @@ class ReferenceParams:
     bias_max: float = 0.5
     q_bias_y: float = 1.0e-5
     bias_y_max: float = 0.5
-    k_rel: float = 1.0
-    gate_vy: float = 3.0
+    k_rel: float = 0.3
+    gate_vy: float = 6.0
     tau_vy: float = 1.0
-    side_vy: float = 0.05
+    side_vy: float = 1.0
     tau_wheel: float = 1.0
     acc_dead: float = 3.0
     k_lat: float = 1.0
@@ -114,17 +114,104 @@ class ReferenceParams:
     sigma_corner_slip: float = 3.0
 
 
+@dataclass(frozen=True)
+class StiffnessParams:
+    """Online normalised cornering stiffness c = C_y/ΣF_z of :func:`axle_slip_angles`.
+
+    Attributes:
+        prior_sd: relative one-sigma of the prior compliance 1/c₀ (c₀ = σ0y/κy of the
+            [tire] table, which is a nominal value, not this car's tire).
+        sigma_kappa: one-sigma of the slip-difference regression's error, rad (gyro noise,
+            camber thrust and roll steer that the single-track kinematics leave out).
+        tau: forgetting time of the regression, s (the road or tire may change).
+        mu_linear: |μ_y| of either axle above which a sample is left out (off the linear
+            range the secant stiffness is lower than the small-slip one).
+        v_min: speed below which a sample is left out, m/s.
+        c_min, c_max: physical bounds of c, 1/rad (passenger-car tires: about 10–30).
+        tau_hp: time constant of the high-pass applied to both sides of the regression, s:
+            it keeps the yaw transients and removes what drifts slowly with the lateral
+            acceleration (camber thrust, roll steer, the onset of saturation in a ramp),
+            which would otherwise be read as compliance.
+        tau_lp: time constant of the low-pass applied to both sides, s: noise on the
+            estimated μ_yr − μ_yf (the regressor) would bias the compliance towards 0.
+    """
+
+    prior_sd: float = 0.3
+    sigma_kappa: float = 0.01
+    tau: float = 20.0
+    mu_linear: float = 0.3
+    v_min: float = 5.0
+    c_min: float = 8.0
+    c_max: float = 40.0
+    tau_hp: float = 1.0
+    tau_lp: float = 0.1
+
+
+def stiffness_params(c0: float, p: StiffnessParams, radius: float, wheelbase: float) -> np.ndarray:
+    """Parameter vector of :func:`axle_slip_angles` from the nominal c₀ (1/rad)."""
+    return np.array([1.0 / c0, (p.sigma_kappa * c0 / p.prior_sd) ** 2, p.tau, p.mu_linear,
+                     p.v_min, p.c_min, p.c_max, radius, wheelbase, p.tau_hp, p.tau_lp])
+
+
 @njit(**_JIT)
-def axle_slip_angles(fy: np.ndarray, fz: np.ndarray, cy_per_load: float) -> np.ndarray:
-    """Axle slip angles α = −F_y/C_y (n, 2) [front, rear], rad, the linear-tire input of the
-    v_y bounds, with the small-slip stiffness C_y = ΣF_z · ``cy_per_load`` (1/rad) of the
-    axle's tires (corner order fl, fr, rl, rr); NaN where C_y ≤ 1 N/rad (lifted axle)."""
-    out = np.empty((fy.shape[0], 2))
-    for k in range(fy.shape[0]):
-        for a in range(2):
-            c = cy_per_load * (fz[k, 2 * a] + fz[k, 2 * a + 1])
-            out[k, a] = -(fy[k, 2 * a] + fy[k, 2 * a + 1]) / c if c > 1.0 else np.nan
-    return out
+def axle_slip_angles(t: np.ndarray, omega: np.ndarray, yaw_rate: np.ndarray,
+                     delta: np.ndarray, fy: np.ndarray, fz: np.ndarray, prm: np.ndarray,
+                     state: np.ndarray, out: np.ndarray, out_c: np.ndarray) -> None:
+    """Axle slip angles α = −F_y/(c ΣF_z) (n, 2) [front, rear], rad, the linear-tire input of
+    the v_y bounds, with the normalised cornering stiffness c identified online.
+
+    The single-track kinematics fix the difference of the axle slip angles without v_y:
+    α_f − α_r = L r/v_x − δ (000 eq. (16)'s slip angles, spec sign), and a linear tire
+    gives α = −w μ_y with the compliance w = 1/c. So
+        L r/v_x − δ = w (μ_yr − μ_yf) + b,
+    a regression for w (b takes a steering offset and the gyro bias over speed) in samples
+    where both axles are in their linear range. It is solved in closed form from
+    exponentially forgotten sums (time constant τ) with the Gaussian prior w₀ = 1/c₀ of
+    weight (σ_κ/σ_w)² (``prm`` from :func:`stiffness_params`: [w₀, prior weight, τ,
+    μ_linear, v_min, c_min, c_max, R, L]). Only yaw transients excite it: in steady
+    cornering μ_yf ≈ μ_yr and c stays where the last transient left it.
+    ``state`` = [Σλ, Σλx, Σλy, Σλx², Σλxy, t_prev, started]; ``out_c`` (n,) the c used.
+    NaN where ΣF_z ≤ 1 N (lifted axle).
+    """
+    w0, p0, tau, mu_lin, v_min, c_min, c_max, radius, wheelbase, tau_hp, tau_lp = (
+        prm[0], prm[1], prm[2], prm[3], prm[4], prm[5], prm[6], prm[7], prm[8], prm[9],
+        prm[10])
+    w = np.empty(4)
+    for k in range(t.shape[0]):
+        fzf = fz[k, 0] + fz[k, 1]
+        fzr = fz[k, 2] + fz[k, 3]
+        mu_f = (fy[k, 0] + fy[k, 1]) / fzf if fzf > 1.0 else np.nan
+        mu_r = (fy[k, 2] + fy[k, 3]) / fzr if fzr > 1.0 else np.nan
+        dt = t[k] - state[5] if state[6] == 1.0 else 0.0
+        lam = np.exp(-dt / tau)
+        state[5] = t[k]
+        state[6] = 1.0
+        state[3] *= lam
+        state[4] *= lam
+        for i in range(4):
+            w[i] = omega[k, i]
+        w.sort()
+        v = 0.5 * radius * (w[1] + w[2])
+        if v > v_min and abs(mu_f) < mu_lin and abs(mu_r) < mu_lin:
+            x = mu_r - mu_f
+            y = wheelbase * yaw_rate[k] / v - 0.5 * (delta[k, 0] + delta[k, 1])
+            if state[2] == 0.0:  # first linear sample: the band-pass starts from it
+                state[0], state[1], state[2], state[7], state[8] = x, y, 1.0, x, y
+            g = min(dt / tau_lp, 1.0)
+            state[7] += g * (x - state[7])
+            state[8] += g * (y - state[8])
+            g = min(dt / tau_hp, 1.0)
+            state[0] += g * (state[7] - state[0])
+            state[1] += g * (state[8] - state[1])
+            x = state[7] - state[0]
+            y = state[8] - state[1]
+            state[3] += x * x
+            state[4] += x * y
+        comp = (state[4] + p0 * w0) / (state[3] + p0)
+        c = min(max(1.0 / comp if comp > 0.0 else c_max, c_min), c_max)
+        out_c[k] = c
+        out[k, 0] = -mu_f / c
+        out[k, 1] = -mu_r / c
 
 
 @njit(**_JIT)
