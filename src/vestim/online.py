@@ -78,7 +78,8 @@ def step_kernel(s: np.ndarray, out: np.ndarray, fprm: np.ndarray, nl_prm: np.nda
     ``fprm`` = [unused ×4, f_rr, R, drag coefficient, I_z,
     load exponent, slip scale, C_y/F_z]; ``nl_prm`` from
     :func:`~vestim.estimators.force.normal.normal_load_params`; ``lon_prm`` = [I_w, R,
-    r_ω, r_T, q_acc, q_acc_high, q_T, ω̇_high, p0_acc, τ, q_acc_innov, α, c_m, c_1];
+    r_ω, r_T, q_acc, q_acc_high, q_T, ω̇_high, p0_acc, τ, q_acc_innov, α, c_m, c_1, then
+    UKFParams.noise_online (1/0) … resolve_time in the kernel's order];
     ``kf_prm`` = [κ, σ0, σ1, σ2,
     r, r_high, step_ref, λ_u, λ_l, β_e, ω̇_th, min speed, μ release]; ``pstate`` =
     [t_prev, r_prev, fused filter still identical to the plain one (1/0)];
@@ -113,7 +114,9 @@ def step_kernel(s: np.ndarray, out: np.ndarray, fprm: np.ndarray, nl_prm: np.nda
     ukf_kernel(t1, omega, teff, lon_prm[0], lon_prm[1], lon_prm[2], lon_prm[3], lon_prm[4],
                lon_prm[5], lon_prm[6], lon_prm[7], lon_prm[8], lon_wm, lon_wc, lon_prm[9],
                lon_x, lon_P, lon_ht, lon_hw, fx, sig_fx, high, lon_prm[10], lon_prm[11],
-               lon_prm[12], lon_prm[13])
+               lon_prm[12], lon_prm[13], lon_prm[14] > 0.5, lon_prm[15], lon_prm[16],
+               lon_prm[17], lon_prm[18], lon_prm[19], lon_prm[20], lon_prm[21], lon_prm[22],
+               lon_prm[23], lon_prm[24])
     w_mean = 0.25 * (omega[0, 0] + omega[0, 1] + omega[0, 2] + omega[0, 3])
     drag = np.empty(1)
     drag[0] = fprm[6] * (radius * w_mean) ** 2
@@ -217,7 +220,7 @@ def step_kernel(s: np.ndarray, out: np.ndarray, fprm: np.ndarray, nl_prm: np.nda
             var = np.full((1, 1), np.nan)
             if n_high >= 3:
                 extra[0, 0] = vx_f[0]
-                var[0, 0] = ref_prm[23] ** 2
+                var[0, 0] = ref_prm[-1] ** 2
             v = np.empty((1, 2))
             sig = np.empty((1, 2))
             bias = np.empty((1, 3))
@@ -274,7 +277,11 @@ def build_step(pipe: Pipeline) -> tuple[Any, ...] | None:
     u = lon.ukf
     lon_prm = np.array([lon.iw, lon.radius, u.r_omega, u.r_torque, u.q_acc, u.q_acc_high,
                         u.q_torque, u.omega_dot_high, u.p0_acc, lon._tau, u.q_acc_innov,
-                        u.innov_alpha, u.innov_mean, u.innov_one])
+                        u.innov_alpha, u.innov_mean, u.innov_one, float(u.noise_online),
+                        u.noise_prior_n, u.noise_gain_min, u.sigma_omega_min,
+                        u.sigma_torque_min, u.q_torque_innov, u.innov_torque_one,
+                        u.innov_torque_mean, u.innov_torque_share, u.resolve_time,
+                        u.q_torque_switched])
     ref, fus = pipe.reference, pipe.fused
     fused = cfg.velocity == "fused"
     corner = pipe.corner

@@ -47,10 +47,13 @@ from vestim.estimators.velocity.kinematic import KinematicIntegrator
 from vestim.estimators.velocity.lpv_observer import GainSchedule as LPVGains
 from vestim.estimators.velocity.lpv_observer import LPVParams
 from vestim.estimators.velocity.reference import (
+    RadiusParams,
     ReferenceFilter,
     ReferenceParams,
     StiffnessParams,
     axle_slip_angles,
+    radius_params,
+    radius_scale,
     stiffness_params,
 )
 from vestim.io.vehicle import Vehicle
@@ -93,6 +96,7 @@ class PipelineConfig:
             Used by the corner methods and by "fused" for its corner measurement.
         reference: parameters of the reference filter.
         cornering: the online cornering-stiffness regression of its v_y bounds.
+        radius: the online wheel-radius scale from ``gnss_speed`` (logs that have it).
         fusion_params: parameters of the fusion stage.
         gains: path of a gains file from ``vestim design lpv`` for the "lpv" observers
             (default: 001's constant gains).
@@ -104,6 +108,7 @@ class PipelineConfig:
     fusion: str = "axle"
     reference: ReferenceParams = field(default_factory=ReferenceParams)
     cornering: StiffnessParams = field(default_factory=StiffnessParams)
+    radius: RadiusParams = field(default_factory=RadiusParams)
     fusion_params: FusionParams = field(default_factory=FusionParams)
     gains: str | None = None
 
@@ -128,7 +133,8 @@ class PipelineConfig:
         table = data.get("pipeline")
         if not isinstance(table, dict):
             raise PipelineConfigError(f"{path}: no [pipeline] table")
-        allowed = {f.name for f in fields(cls)} - {"reference", "fusion_params", "cornering"}
+        allowed = {f.name for f in fields(cls)} - {"reference", "fusion_params", "cornering",
+                                                "radius"}
         unknown = sorted(set(table) - allowed)
         if unknown:
             raise PipelineConfigError(f"{path}: [pipeline] has unknown key(s) {', '.join(unknown)};"
@@ -164,6 +170,8 @@ class Pipeline:
         self._stiff_prm = stiffness_params(vehicle.tire.sigma0_y / vehicle.tire.kappa_y,
                                            self.config.cornering, b.wheel_radius, b.wheelbase)
         self._stiff_state = np.zeros(9)
+        self._radius_prm = radius_params(self.config.radius, b.wheel_radius)
+        self._radius_state = np.zeros(4)
         self.force = ForceEstimator(vehicle, ForceConfig(longitudinal=self.config.force,
                                                          normal=self.config.normal))
         self.reference = ReferenceFilter(b.wheel_radius, b.lf, b.lr, self._xw, self._yw,
@@ -194,6 +202,7 @@ class Pipeline:
             self.corner.reset()
         self._prev = np.array([np.nan, 0.0])
         self._stiff_state[:] = 0.0
+        self._radius_state[:] = 0.0
         self._fused_is_reference = True
         self._step_args = None
         self._step_rates = None
@@ -269,6 +278,16 @@ class Pipeline:
         c_y = np.empty(n)
         axle_slip_angles(u.t, u.omega, u.yaw_rate, u.delta, res["fy"], fz, self._stiff_prm,
                          self._stiff_state, axle_slip, c_y)
+        # The velocity stage sees the wheel speeds at the effective radius that the GNSS
+        # speed shows (scale 1 without gnss_speed).
+        scale = np.empty(n)
+        radius_scale(u.t, u.omega, u.gnss_speed, u.ax, self._radius_prm, self._radius_state,
+                     scale)
+        if np.any(scale != 1.0):
+            u = replace(u, omega=np.ascontiguousarray(u.omega * scale[:, None]))
+        gnss = np.isfinite(u.gnss_speed)
+        extra = u.gnss_speed[:, None]
+        var = np.where(gnss, self.config.reference.sigma_gnss**2, np.nan)[:, None]
         mu_x_c = np.ascontiguousarray(mu_x)
         if method == "kinematic":
             v = self.kinematic.advance(u.t, u.omega, res["f_x"], res["f_y"], u.yaw_rate)
@@ -284,7 +303,7 @@ class Pipeline:
             # no-sideslip approximation fails when the car slides: 4–5 % v_x in RWD spins).
             start = self.reference.snapshot() if self._fused_is_reference else ()
             ref = self.reference.advance(u.t, u.omega, u.torque, mu_x_c, axle_slip, res["f_x"],
-                                         res["f_y"], u.yaw_rate, u.delta)
+                                         res["f_y"], u.yaw_rate, u.delta, extra, var)
             out = self._corners(u, res, mu_x_c, ref)
             vx_corner = self._fuse_corners(out, u, res, ref["v"])
             p = self.config.reference
@@ -297,14 +316,15 @@ class Pipeline:
                 if self._fused_is_reference:
                     self.fused.restore(start)
                     self._fused_is_reference = False
-                extra = np.where(all_slip, vx_corner, np.nan)[:, None]
-                var = np.where(all_slip, p.sigma_corner_slip**2, np.nan)[:, None]
+                extra2 = np.column_stack((extra, np.where(all_slip, vx_corner, np.nan)))
+                var2 = np.column_stack((var, np.where(all_slip, p.sigma_corner_slip**2,
+                                                      np.nan)))
                 vel = self.fused.advance(u.t, u.omega, u.torque, mu_x_c, axle_slip, res["f_x"],
-                                         res["f_y"], u.yaw_rate, u.delta, extra, var)
+                                         res["f_y"], u.yaw_rate, u.delta, extra2, var2)
             v, sig, bias = vel["v"], vel["sigma"], vel["bias"][:, 0]
         else:
             vel = self.reference.advance(u.t, u.omega, u.torque, mu_x_c, axle_slip, res["f_x"],
-                                         res["f_y"], u.yaw_rate, u.delta)
+                                         res["f_y"], u.yaw_rate, u.delta, extra, var)
             v, sig, bias = vel["v"], vel["sigma"], vel["bias"][:, 0]
             if self.corner is not None:
                 out = self._corners(u, res, mu_x_c, vel)
@@ -314,7 +334,7 @@ class Pipeline:
         vx_i, vy_i = kin.cg_to_corners(v[:, 0], v[:, 1], u.yaw_rate, self._xw, self._yw)
         vxt, vyt = kin.to_tire_frame(vx_i, vy_i, u.delta)
         res.update({"v": v, "sigma_v": sig, "bias": bias, "vx_i": vx_i, "vy_i": vy_i,
-                    "cornering_stiffness": c_y,
+                    "cornering_stiffness": c_y, "radius_scale": scale,
                     "vxt": vxt, "vyt": vyt,
                     "slip_ratio": kin.slip_ratio(u.omega, vxt, self.vehicle.body.wheel_radius),
                     "slip_angle": kin.slip_angle(vxt, vyt)})
@@ -337,6 +357,7 @@ class Pipeline:
         if not np.all(np.isnan(res["bias"])):
             groups.append((["bias_ax"], res["bias"]))
         groups.append((["cornering_stiffness"], res["cornering_stiffness"]))
+        groups.append((["radius_scale"], res["radius_scale"]))
         if "confidence" in res:
             groups.append((names("confidence"), res["confidence"]))
         return groups
@@ -372,7 +393,10 @@ class Pipeline:
         return {k: float(v[0]) for k, v in cols.items()}
 
     def _fast_step(self, sample: Mapping[str, float]) -> dict[str, float] | None:
-        """One sample through :func:`vestim.online.step_kernel`, or None if not covered."""
+        """One sample through :func:`vestim.online.step_kernel`, or None if not covered
+        (a ``gnss_speed`` channel takes the general path)."""
+        if "gnss_speed" in sample:
+            return None
         if self._step_args is None:
             self._step_args = online.build_step(self)
             if self._step_args is None:
@@ -405,4 +429,6 @@ class Pipeline:
                 "torque_source": "measured", "az_source": "measured",
                 "roll_source": "rate" if rates[0] else "quasi_static",
                 "pitch_source": "rate" if rates[1] else "quasi_static"})
-        return dict(zip(self._step_names, out.tolist(), strict=True))
+        row = dict(zip(self._step_names, out.tolist(), strict=True))
+        row["radius_scale"] = 1.0  # no gnss_speed on this path
+        return row

@@ -37,9 +37,15 @@ STEERING_WHEEL_ANGLE = "steering_wheel_angle"
 STEERING: tuple[str, ...] = (*ROAD_WHEEL_ANGLES, DELTA, STEERING_WHEEL_ANGLE)
 """Every steering column; a log needs delta_fl and delta_fr, or delta, or steering_wheel_angle."""
 
-MEASURED: tuple[str, ...] = (T, *WHEEL_SPEEDS, *TORQUES, *IMU, *STEERING)
+GNSS_SPEED = "gnss_speed"
+"""Speed over ground from a GNSS receiver, m/s (≥ 0), a sparse channel."""
+SPARSE: tuple[str, ...] = (GNSS_SPEED,)
+"""Channels sampled slower than ``t``: a value on the row nearest each of their own samples
+and NaN between (shared/spec/log-format.md, "Sparse channels")."""
+
+MEASURED: tuple[str, ...] = (T, *WHEEL_SPEEDS, *TORQUES, *IMU, *STEERING, *SPARSE)
 """All measured channels in spec order, optional ones (az, roll_rate, pitch_rate, delta,
-steering_wheel_angle) included."""
+steering_wheel_angle, gnss_speed) included."""
 
 MEASURED_REQUIRED: tuple[str, ...] = (T, *WHEEL_SPEEDS, *IMU_REQUIRED)
 """Mandatory measured channels apart from steering (which has alternatives, see STEERING).
@@ -96,6 +102,7 @@ def _base_units() -> dict[str, str]:
     units.update(dict.fromkeys(("ax", "ay", "az"), "m/s²"))
     units.update(dict.fromkeys(("yaw_rate", "roll_rate", "pitch_rate"), "rad/s"))
     units.update(dict.fromkeys(STEERING, "rad"))
+    units[GNSS_SPEED] = "m/s"
     estimated = {"vx": "m/s", "vy": "m/s", "roll": "rad", "pitch": "rad",
                  "stiffness_cx_f": "N", "stiffness_cx_r": "N",
                  "stiffness_cy_f": "N/rad", "stiffness_cy_r": "N/rad"}

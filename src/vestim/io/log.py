@@ -359,7 +359,8 @@ def _check_structure(df: pd.DataFrame, *, source: str) -> np.ndarray:
         if pd.api.types.is_integer_dtype(s.dtype) and not s.hasnans:
             continue
         v = t if name == ch.T else _floats(s)
-        bad = ~np.isfinite(v)
+        # A sparse channel is NaN between its own samples; inf or a negative speed is not.
+        bad = (np.isinf(v) | (v < 0)) if name in ch.SPARSE else ~np.isfinite(v)
         if bad.any():
             i = int(bad.argmax())
             if first_bad is None or i < first_bad[0]:
@@ -367,6 +368,11 @@ def _check_structure(df: pd.DataFrame, *, source: str) -> np.ndarray:
     if first_bad is not None:
         i, name, value = first_bad
         what = "missing (NaN)" if math.isnan(value) else f"{value}"
+        if name in ch.SPARSE:
+            raise LogFormatError(
+                f"{source}: sparse column {name!r} is {what} at {_where(i, t)}; it holds a "
+                "finite speed ≥ 0 m/s on the rows nearest its own samples and NaN between"
+            )
         raise LogFormatError(
             f"{source}: column {name!r} is {what} at {_where(i, t)}; every value must be "
             "finite: fill the gap (e.g. interpolate) or drop that row"

@@ -196,7 +196,12 @@ class MagicFormula:
 
 @dataclass(frozen=True)
 class Vehicle:
-    """A whole vehicle file. ``stiffness`` is ``None`` when the file has no such table."""
+    """A whole vehicle file. ``stiffness`` is ``None`` when the file has no such table.
+
+    ``given`` names the optional tables the file itself stated (the others hold their
+    documented defaults, made for vestim's simulator: an estimator must not treat them as
+    facts about the car).
+    """
 
     body: VehicleBody
     tire: LuGreTire
@@ -206,6 +211,16 @@ class Vehicle:
     magic_formula: MagicFormula
     stiffness: Stiffness | None = None
     name: str = "vehicle"
+    given: frozenset[str] = frozenset()
+
+    @property
+    def stated_aerodynamics(self) -> Aerodynamics:
+        """``[aerodynamics]`` as the estimators use it: the file's table, or no drag and no
+        rolling resistance (000 eq. (1)) when the file does not state one — the defaults
+        describe vestim's simulated car, not the user's."""
+        if "aerodynamics" in self.given:
+            return self.aerodynamics
+        return replace(self.aerodynamics, drag_area=0.0, rolling_resistance=0.0)
 
     def with_drivetrain(self, drivetrain: str) -> Vehicle:
         """Copy with another drivetrain ("awd" | "fwd" | "rwd")."""
@@ -368,6 +383,7 @@ def vehicle_from_dict(data: dict[str, Any], name: str = "vehicle") -> Vehicle:
         stiffness=(_parse(Stiffness, "stiffness", data["stiffness"], None)
                    if "stiffness" in data else None),
         name=name,
+        given=frozenset(t for t in _TABLES if t in data and t not in ("vehicle", "tire")),
     )
 
 

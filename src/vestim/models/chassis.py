@@ -162,7 +162,7 @@ def chassis_wheel_torques(f_x: np.ndarray, f_y: np.ndarray, delta_front: np.ndar
         omega_dot: wheel acceleration per corner (n, 4), rad/s², or None for the
             rolling-without-slip approximation ω̇_i = f_x/R.
     """
-    b, a, pt = vehicle.body, vehicle.aerodynamics, vehicle.powertrain
+    b, a, pt = vehicle.body, vehicle.stated_aerodynamics, vehicle.powertrain
     speed = drag_speed(f_x, omega, b.wheel_radius)
     drag = 0.5 * a.air_density * a.drag_area * speed * np.abs(speed)
     force = b.mass * f_x + drag + steered_drag(f_y, delta_front, b.mass, b.lf, b.lr)

@@ -127,14 +127,18 @@ def test_drag_enters_a_x():
 
 
 def test_longitudinal_ties():
-    """FWD/AWD: w_x is ΔC_f^x and ΔC_r^x follows ΔC_r^y/C_{r,n}^y; RWD: w_x is ΔC_r^x."""
+    """FWD/AWD: w_x is ΔC_f^x and ΔC_r^x = w_x C_{r,n}^x/C_{f,n}^x (the same relative change);
+    RWD: w_x is ΔC_r^x and ΔC_f^x = w_x C_{f,n}^x/C_{r,n}^x. The cornering stiffnesses do not
+    enter the longitudinal ones."""
+    cxf, cxr, cyf, cyr = NOMINAL
     w = np.array([10e3, -14e3, -13.5e3])
     fwd = _params("fwd").deviation_to_axles(w)
-    np.testing.assert_allclose(fwd, [230e3, 215e3 * 0.9, 126e3, 121.5e3])
+    np.testing.assert_allclose(fwd, [cxf + 10e3, cxr * (1.0 + 10e3 / cxf), cyf - 14e3, cyr - 13.5e3])
     rwd = _params("rwd").deviation_to_axles(w)
-    np.testing.assert_allclose(rwd, [220e3 * 0.9, 225e3, 126e3, 121.5e3])
+    np.testing.assert_allclose(rwd, [cxf * (1.0 + 10e3 / cxr), cxr + 10e3, cyf - 14e3, cyr - 13.5e3])
     back = _params("rwd").axles_to_deviation(rwd)
     np.testing.assert_allclose(back, w)
+    np.testing.assert_allclose(_params("fwd").axles_to_deviation(fwd), w)
 
 
 def test_simulate_is_the_euler_recursion():

@@ -365,7 +365,7 @@ def test_prior_from_vehicle_table_or_generic():
     generic = StiffnessPrior.for_vehicle(suv)
     fz_f = suv.body.mass * 9.81 * suv.body.lr / suv.body.wheelbase
     assert generic.nominal[2] == pytest.approx(10.0 * fz_f)
-    assert generic.lower[2] == pytest.approx(2.0 * fz_f) and generic.upper[2] == pytest.approx(25.0 * fz_f)
+    assert generic.lower[2] == pytest.approx(2.0 * fz_f) and generic.upper[2] == pytest.approx(40.0 * fz_f)
     with_table = replace(suv, stiffness=Stiffness(cx_f=2e5, cx_r=1.9e5, cy_f=1.4e5, cy_r=1.3e5))
     prior = StiffnessPrior.for_vehicle(with_table)
     assert prior.nominal == (2e5, 1.9e5, 1.4e5, 1.3e5)

@@ -43,7 +43,7 @@ from vestim.estimators.force import longitudinal as lon
 from vestim.estimators.force import normal as nrm
 from vestim.filters.ukf import ukf_weights
 from vestim.io.log import road_wheel_angles
-from vestim.io.vehicle import Vehicle, default_aerodynamics
+from vestim.io.vehicle import Vehicle
 from vestim.models import chassis
 
 TORQUES: tuple[str, ...] = tuple(f"torque_{c}" for c in CORNERS)
@@ -62,6 +62,8 @@ class ForceConfig:
             (:func:`.normal.attitude_kernel`).
         roll_slide: gravity-roll disagreement e_φ (rad) at which the roll filter's gravity
             correction is halved (a sliding car's v̇_y would otherwise read as roll).
+        roll_gain: correction gain L_φ towards the quasi-static roll of a stated
+            ``[suspension]``, 1/s (without one, the gyro/gravity filter of ``roll_tau``).
         pitch_gain: correction gain L_θ of the pitch filter, 1/s.
         rate_filter_hz: corner frequency of the roll and pitch acceleration differentiators
             whose I ω̇ terms enter the load transfer, Hz (:func:`.normal.attitude_kernel`).
@@ -76,6 +78,7 @@ class ForceConfig:
     roll_tau: float = 2.0
     rate_filter_hz: float = 8.0
     roll_slide: float = 0.03
+    roll_gain: float = 2.0
     pitch_gain: float = 2.0
 
     def __post_init__(self) -> None:
@@ -100,6 +103,7 @@ class Inputs:
         t: (n,) s. omega: (n, 4) rad/s. torque: (n, 4) N m, net drive minus brake.
         ax, ay, az: (n,) m/s², specific force. yaw_rate, roll_rate, pitch_rate: (n,) rad/s.
         delta: (n, 4) rad, road-wheel angles, rear wheels 0.
+        gnss_speed: (n,) m/s, speed over ground where a GNSS fix falls, NaN elsewhere.
     """
 
     t: np.ndarray
@@ -112,6 +116,7 @@ class Inputs:
     roll_rate: np.ndarray
     pitch_rate: np.ndarray
     delta: np.ndarray
+    gnss_speed: np.ndarray
     torque_measured: bool = True
     az_measured: bool = True
     roll_rate_measured: bool = True
@@ -174,6 +179,7 @@ def inputs_from_log(log: pd.DataFrame, vehicle: Vehicle) -> Inputs:
         ax=_column(log, "ax", 0.0), ay=_column(log, "ay", 0.0), az=_column(log, "az", np.nan),
         yaw_rate=_column(log, "yaw_rate", 0.0), roll_rate=_column(log, "roll_rate", np.nan),
         pitch_rate=_column(log, "pitch_rate", np.nan), delta=delta,
+        gnss_speed=_column(log, "gnss_speed", np.nan),
         torque_measured=has_torque, az_measured="az" in cols,
         roll_rate_measured="roll_rate" in cols, pitch_rate_measured="pitch_rate" in cols,
     )
@@ -263,26 +269,6 @@ def force_columns(t: np.ndarray, res: Mapping[str, np.ndarray]) -> dict[str, np.
     return {"t": t, **columns_from_groups(force_groups(res))}
 
 
-def file_rolling_resistance(vehicle: Vehicle) -> float:
-    """Rolling-resistance coefficient f the longitudinal force stage uses: the vehicle
-    file's ``[aerodynamics] rolling_resistance``, or 0 (000 eq. (1), no moment) when the
-    file has no ``[aerodynamics]`` table.
-
-    The table is the simulator's (shared/spec/log-format.md: the estimators need only
-    ``[vehicle]`` and ``[tire]``); its default f = 0.012 describes our simulator's tire, and
-    applying it to a car whose file does not state it biases F_x by f·F_z (≈ 40 N per
-    corner, 8 % of the 500 N floor, on the crossplant logs, whose plant has none).
-    :class:`~vestim.io.vehicle.Vehicle` does not record which tables the file had, so a
-    table equal to the documented defaults in all three values counts as absent.
-    """
-    a = vehicle.aerodynamics
-    defaults = default_aerodynamics()
-    if (a.drag_area, a.air_density, a.rolling_resistance) == (
-            defaults["drag_area"], defaults["air_density"], defaults["rolling_resistance"]):
-        return 0.0
-    return a.rolling_resistance
-
-
 class ForceEstimator:
     """Longitudinal, lateral and normal tire forces per corner (online or batch).
 
@@ -303,17 +289,19 @@ class ForceEstimator:
         self._att_prm = np.array([self.config.roll_tau, self.config.pitch_gain, self._c_roll,
                                   self._c_pitch, b.wheel_radius, self.config.rate_filter_hz,
                                   {"fwd": 1.0, "rwd": 0.0}.get(b.drivetrain, -1.0),
-                                  self.config.roll_slide])
+                                  self.config.roll_slide,
+                                  self.config.roll_gain if "suspension" in vehicle.given
+                                  else 0.0])
         self._xw = np.array([b.lf, b.lf, -b.lr, -b.lr])
         self._yw = 0.5 * np.array([b.track_f, -b.track_f, b.track_r, -b.track_r])
         self._w4, self._c4, self._tau4 = ukf_weights(4)
         lp = self.config.lateral
-        self._q_lat = np.array([lp.q_force, lp.q_force, lp.q_split, lp.q_yaw])
+        self._q_lat = lat.lateral_q(lp)
         self._r_lat = np.array([(b.mass * lp.sigma_ax) ** 2, (b.mass * lp.sigma_ay) ** 2,
                                 lp.sigma_yaw**2, lp.sigma_split**2])
-        a = vehicle.aerodynamics
+        a = vehicle.stated_aerodynamics
         self._drag_coef = 0.5 * a.air_density * a.drag_area
-        self.rolling_resistance = file_rolling_resistance(vehicle)
+        self.rolling_resistance = vehicle.stated_aerodynamics.rolling_resistance
         self.reset()
 
     def reset(self) -> None:
@@ -328,7 +316,7 @@ class ForceEstimator:
         self._att = np.zeros(8)
         self._lat_x = np.zeros(lat.N_X)
         self._lat_P = np.zeros((lat.N_X, lat.N_X))
-        self._lat_state = np.zeros(10)
+        self._lat_state = np.zeros(lat.N_STATE)
         self._seen: dict[str, set[str]] = {}
 
     @property
@@ -387,7 +375,7 @@ class ForceEstimator:
         # of a free-rolling tire is −f·F_z); 000 eq. (1) omits it, which biases F_x
         # by f·F_z ≈ 65 N per SUV corner. The estimators see the effective torque.
         # f is the vehicle file's own value; without one it is 0 (000 eq. (1)), not
-        # the simulator's default (see file_rolling_resistance).
+        # the simulator's default (see Vehicle.stated_aerodynamics).
         # The moment fades out below |ω| = 3 rad/s (1 m/s): a sharper switch would
         # flip with the wheel-speed noise (σ 0.42 rad/s) at standstill.
         torque = chassis.torque_less_rolling_resistance(
@@ -451,6 +439,7 @@ class ForceEstimator:
             yaw_rate=one("yaw_rate", 0.0), roll_rate=one("roll_rate", np.nan),
             pitch_rate=one("pitch_rate", np.nan),
             delta=np.array([[float(front[0]), float(front[1]), 0.0, 0.0]]),
+            gnss_speed=one("gnss_speed", np.nan),
             torque_measured=has_torque, az_measured="az" in sample,
             roll_rate_measured="roll_rate" in sample, pitch_rate_measured="pitch_rate" in sample,
         )

@@ -12,6 +12,8 @@ sample execute the same code and give identical results):
   state: x = [ω, ω̇, T], F̂_x = (T̂ − I_w ω̇̂)/R_e. It is the papers' estimator with the
   force's process model F_{k+1} = F_k + ΔT/R_e + ϱ (a torque step moves the force one
   to one unless the wheel accelerates), which removes the lag of a pure random walk.
+  Its ω and T noise variances are estimated online from the log (second differences),
+  and a torque-innovation switch follows limiter chops where ω resolves them quickly.
 * ``ukf_rw`` — the papers' form exactly: x = [ω, F_x], F_x a random walk.
 * ``pid``  — PID observer of 001 eq. (2)–(5) (gains η1 = 1.8, η2 = 11.4, η3 = 50.6).
 * ``uio``  — unknown-input observer of 000 eq. (2)–(3).
@@ -47,8 +49,9 @@ class UKFParams:
     """Noise settings of the UKF force estimators (one set for every maneuver).
 
     Attributes:
-        r_omega: wheel-speed measurement variance, (rad/s)² — 000 Sec. IV-A's 0.18.
-        r_torque: wheel-torque measurement variance, (N m)² — 000 Sec. IV-A's 32.
+        r_omega: wheel-speed measurement variance, (rad/s)² — 000 Sec. IV-A's 0.18 (for
+            ``ukf`` with ``noise_online`` the prior of the online estimate).
+        r_torque: wheel-torque measurement variance, (N m)² — 000 Sec. IV-A's 32 (likewise).
         q_acc: random-walk intensity of ω̇ in normal driving, (rad/s²)²/s (``ukf``).
         q_acc_high: the same while the wheel accelerates hard (004's switching).
         q_torque: random-walk intensity of the true torque, (N m)²/s (``ukf``).
@@ -63,6 +66,19 @@ class UKFParams:
         innov_one: threshold of one normalised ω innovation.
         p0_acc: initial variance of ω̇, (rad/s²)².
         p0_force: initial variance of F_x, N² (``ukf_rw``).
+        noise_online: estimate the ω and T noise variances from the log (``ukf``; see
+            :func:`ukf_kernel`); r_omega and r_torque are then the prior.
+        noise_prior_n: weight of that prior, in samples.
+        noise_gain_min: floor of the noise trackers' gain (memory ≈ 2.33/gain samples).
+        sigma_omega_min, sigma_torque_min: floors of the online noise levels, rad/s and N m.
+        q_torque_innov: torque intensity while the torque-innovation switch is on, (N m)²/s.
+        innov_torque_one: threshold of one normalised torque innovation.
+        innov_torque_mean: threshold of their running mean, in its white-noise σ.
+        innov_torque_share: share of a switched torque step put along "F_x held".
+        resolve_time: the torque switch is enabled only while a one-σ torque step shows in
+            ω within this time, s (τ = √(2 σ_ω I_w/σ_T)).
+        q_torque_switched: torque intensity outside the switch while it is enabled, (N m)²/s
+            (otherwise q_torque scaled by r̂_T/r_torque, see :func:`ukf_kernel`).
     """
 
     r_omega: float = 0.18
@@ -80,6 +96,17 @@ class UKFParams:
     innov_one: float = 4.0
     p0_acc: float = 100.0
     p0_force: float = 1.0e6
+    noise_online: bool = True
+    noise_prior_n: float = 10.0
+    noise_gain_min: float = 2.0e-3
+    sigma_omega_min: float = 1.0e-3
+    sigma_torque_min: float = 0.1
+    q_torque_innov: float = 1.0e5
+    innov_torque_one: float = 4.0
+    innov_torque_mean: float = 3.0
+    innov_torque_share: float = 0.5
+    resolve_time: float = 0.2
+    q_torque_switched: float = 200.0
 
 
 @njit(**_JIT)
@@ -206,6 +233,25 @@ def _push(hist_t: np.ndarray, hist_w: np.ndarray, tk: float, wk: np.ndarray) -> 
 
 # ---------------------------------------------------- UKF on [ω, ω̇, T] (default)
 A_W, A_A, A_T = 0, 1, 2
+# Columns of the ukf state array x (4, UKF_COLS) after the filter state [ω, ω̇, T]:
+X_MEAN, X_SW = 3, 4          # running mean of the normalised ω innovation; ω̇ switch flag
+X_LW, X_LT = 5, 6            # log of the online noise scales σ̂_ω, σ̂_T
+X_W1, X_W2, X_T1, X_T2 = 7, 8, 9, 10   # previous two wheel speeds and torques
+X_N, X_TSW = 11, 12          # samples seen by the noise trackers; torque switch flag
+X_TMEAN = 13                 # running mean of the normalised torque innovation
+UKF_COLS = 14
+# Median of |second difference| of white noise of unit σ: 0.6745 √6; the tracker's gain
+# 1/f(median) of log|N(0, 1)| (its density at the median, 0.4287), for 1/k convergence.
+_D2_MEDIAN = 0.6744897501960817 * 2.449489742783178
+_LOG_GAIN = 1.0 / 0.4287
+
+
+@njit(**_JIT)
+def _track_log_scale(log_m: float, d: float, gain: float) -> float:
+    """One step of the stochastic-approximation median of |d| (in the log): log m moves
+    up by gain/2 when |d| > m and down by gain/2 otherwise, so it settles where half
+    the samples lie above: the median, unmoved by a minority of large values."""
+    return log_m + (0.5 * gain if abs(d) > np.exp(log_m) else -0.5 * gain)
 
 
 @njit(**_JIT)
@@ -215,8 +261,12 @@ def ukf_kernel(t: np.ndarray, omega: np.ndarray, torque: np.ndarray, iw: float, 
                wc: np.ndarray, tau: float, x: np.ndarray, P: np.ndarray, hist_t: np.ndarray,
                hist_w: np.ndarray, fx: np.ndarray, sigma: np.ndarray, high: np.ndarray,
                q_acc_innov: float, innov_alpha: float, innov_mean: float,
-               innov_one: float) -> None:
-    """Advance the four corner UKFs on x = [ω, ω̇, T] over a chunk (in place on x (4, 5), P (4, 3, 3)).
+               innov_one: float, noise_online: bool, noise_prior_n: float,
+               noise_gain_min: float, sigma_omega_min: float, sigma_torque_min: float,
+               q_torque_innov: float, innov_torque_one: float, innov_torque_mean: float,
+               innov_torque_share: float, resolve_time: float,
+               q_torque_switched: float) -> None:
+    """Advance the four corner UKFs on x = [ω, ω̇, T] over a chunk (in place on x (4, UKF_COLS), P (4, 3, 3)).
 
     Process: ω_{k+1} = ω_k + Δt ω̇_k + ½Δt² … (ω̇ held), ω̇ and T random walks with
     intensities q_acc (q_acc_high while |Δω/Δt| over the history window exceeds
@@ -230,8 +280,33 @@ def ukf_kernel(t: np.ndarray, omega: np.ndarray, torque: np.ndarray, iw: float, 
     ``q_acc_innov`` for the update of sample k when |m_k| > c_m √(α/(2 − α)) (a
     persistent one-sided innovation: ω̇ has moved, e.g. a torque chop at a saturated
     tire) or |ν_k| > c_1 (one outlier). The switch decided at k also sets the
-    prediction intensity of k + 1. ``x[:, 3]`` holds m, ``x[:, 4]`` the switch
-    (1/0); ``x[:, :3]`` is the state.
+    prediction intensity of k + 1.
+
+    Online sensor noise (``noise_online``; deviation from 000 Sec. IV-A and 004 eq. (4)–(5),
+    whose measurement covariance R is a fixed, known constant): the measurement variances
+    004 eq. (5) adds to P_zz are estimated from the log itself, per corner and channel,
+    as σ̂² with σ̂ = median|Δ²z|/(0.6745 √6), Δ²z_k = z_k − 2 z_{k−1} + z_{k−2} (white noise
+    of σ gives Δ²z ~ N(0, 6σ²); the signal's own second difference, Δt² z̈, is far below
+    it except at torque steps, which a median ignores while they are a minority). The
+    median is tracked recursively in the log with gain max(2.33/(k + n₀), γ_min)
+    (1/k-optimal stochastic approximation; ``r_omega``/``r_torque`` are its prior worth
+    n₀ = ``noise_prior_n`` samples; γ_min keeps it adaptive, ≈ 1/γ_min samples), floored at
+    ``sigma_omega_min``/``sigma_torque_min``. Without it r_omega/r_torque are used as given.
+
+    Torque-innovation switch (also a deviation from 004): with ν_T the normalised torque
+    innovation and m_T its running mean (weight α as for ω), |ν_T| > ``innov_torque_one``
+    means the torque stepped (a limiter chopping it within a sample) and
+    |m_T| > ``innov_torque_mean`` √(α/(2 − α)) that it ramps faster than the random walk
+    follows; either raises the torque intensity to
+    ``q_torque_innov`` for this update and the next prediction; the share
+    ``innov_torque_share`` of that step is put along "F_x held" (ΔT = I_w Δω̇, the
+    saturated-tire case), the rest on T alone. It lets T̂ follow the chop at once, which
+    pays only if the wheel speed resolves the matching change of ω̇ quickly: a step ΔT
+    moves ω by ½(ΔT/I_w)τ² after τ, which exceeds the ω noise for a step of one torque σ
+    after τ = √(2 σ̂_ω I_w/σ̂_T). The switch is enabled only while τ ≤ ``resolve_time``
+    (crossplant sensors: τ ≈ 0.08 s; our simulator's σ_ω 0.42 rad/s: τ ≈ 0.5 s, off).
+
+    ``x[:, :3]`` is the state; the other columns are the X_* bookkeeping above.
     """
     n = t.shape[0]
     m = hist_t.shape[0]
@@ -244,14 +319,25 @@ def ukf_kernel(t: np.ndarray, omega: np.ndarray, torque: np.ndarray, iw: float, 
     pzz = np.empty((2, 2))
     pxz = np.empty((3, 2))
     sd_mean = np.sqrt(innov_alpha / (2.0 - innov_alpha))
+    log_w_min = np.log(_D2_MEDIAN * sigma_omega_min)
+    log_t_min = np.log(_D2_MEDIAN * sigma_torque_min)
     for k in range(n):
         if np.isnan(hist_t[0]):
             for c in range(4):
                 x[c, A_W] = omega[k, c]
                 x[c, A_A] = 0.0
                 x[c, A_T] = torque[k, c]
-                x[c, 3] = 0.0
-                x[c, 4] = 0.0
+                x[c, X_MEAN] = 0.0
+                x[c, X_SW] = 0.0
+                x[c, X_LW] = np.log(_D2_MEDIAN * np.sqrt(r_omega))
+                x[c, X_LT] = np.log(_D2_MEDIAN * np.sqrt(r_torque))
+                x[c, X_W1] = omega[k, c]
+                x[c, X_W2] = omega[k, c]
+                x[c, X_T1] = torque[k, c]
+                x[c, X_T2] = torque[k, c]
+                x[c, X_N] = 0.0
+                x[c, X_TSW] = 0.0
+                x[c, X_TMEAN] = 0.0
                 P[c, :, :] = 0.0
                 P[c, A_W, A_W] = r_omega
                 P[c, A_A, A_A] = p0_acc
@@ -263,6 +349,35 @@ def ukf_kernel(t: np.ndarray, omega: np.ndarray, torque: np.ndarray, iw: float, 
             continue
         dt = t[k] - hist_t[m - 1]
         for c in range(4):
+            # Online noise levels from second differences (needs two previous samples).
+            seen = x[c, X_N] + 1.0
+            x[c, X_N] = seen
+            if noise_online and seen >= 2.0:
+                gain = max(_LOG_GAIN / (seen - 1.0 + noise_prior_n), noise_gain_min)
+                x[c, X_LW] = max(_track_log_scale(
+                    x[c, X_LW], omega[k, c] - 2.0 * x[c, X_W1] + x[c, X_W2], gain), log_w_min)
+                x[c, X_LT] = max(_track_log_scale(
+                    x[c, X_LT], torque[k, c] - 2.0 * x[c, X_T1] + x[c, X_T2], gain), log_t_min)
+            x[c, X_W2] = x[c, X_W1]
+            x[c, X_W1] = omega[k, c]
+            x[c, X_T2] = x[c, X_T1]
+            x[c, X_T1] = torque[k, c]
+            if noise_online:
+                s_w = np.exp(x[c, X_LW]) / _D2_MEDIAN
+                s_t = np.exp(x[c, X_LT]) / _D2_MEDIAN
+                r_w = s_w * s_w
+                r_t = s_t * s_t
+            else:
+                r_w = r_omega
+                r_t = r_torque
+                s_w = np.sqrt(r_w)
+                s_t = np.sqrt(r_t)
+            torque_switch = (q_torque_innov > q_torque_switched
+                             and 2.0 * s_w * iw <= resolve_time * resolve_time * s_t)
+            # Without the switch the random walk alone follows the torque: its bandwidth
+            # (steady gain ≈ √(q Δt/r)) is held at the tuned one by scaling q with r̂/r.
+            # With it, steps and ramps are the switch's, the walk only the slow drift.
+            q_t = q_torque_switched if torque_switch else q_torque * r_t / r_torque
             is_high = abs(_omega_dot(hist_t, hist_w, t[k], omega[k, c], c)) > omega_dot_high
             sigma_points(x[c, :3], P[c], tau, L, pts)
             for i in range(npts):
@@ -277,19 +392,34 @@ def ukf_kernel(t: np.ndarray, omega: np.ndarray, torque: np.ndarray, iw: float, 
                     for q in range(3):
                         Pm[r, q] += wc[i] * (pts[i, r] - xm[r]) * (pts[i, q] - xm[q])
             q_a = q_acc_high if is_high else q_acc
-            was_innov = x[c, 4] > 0.5
+            was_innov = x[c, X_SW] > 0.5
             if was_innov:
                 q_a = max(q_a, q_acc_innov)
             # ω integrates ω̇: a white ω̇ increment over Δt adds Δt³/3 to var(ω).
             _add_acc_noise(Pm, q_a, dt)
-            Pm[A_T, A_T] += q_torque * dt
+            was_torque = torque_switch and x[c, X_TSW] > 0.5
+            if was_torque:
+                _add_torque_step(Pm, q_torque_innov * dt, innov_torque_share, iw)
+            else:
+                Pm[A_T, A_T] += q_t * dt
             # Innovation-driven switch: test this sample's normalised ω innovation.
-            nu = (omega[k, c] - xm[A_W]) / np.sqrt(Pm[A_W, A_W] + r_omega)
-            x[c, 3] = (1.0 - innov_alpha) * x[c, 3] + innov_alpha * nu
-            now_innov = abs(x[c, 3]) > innov_mean * sd_mean or abs(nu) > innov_one
+            nu = (omega[k, c] - xm[A_W]) / np.sqrt(Pm[A_W, A_W] + r_w)
+            x[c, X_MEAN] = (1.0 - innov_alpha) * x[c, X_MEAN] + innov_alpha * nu
+            now_innov = abs(x[c, X_MEAN]) > innov_mean * sd_mean or abs(nu) > innov_one
             if now_innov and not was_innov and q_acc_innov > q_a:
                 _add_acc_noise(Pm, q_acc_innov - q_a, dt)
-            x[c, 4] = 1.0 if now_innov else 0.0
+            x[c, X_SW] = 1.0 if now_innov else 0.0
+            # Torque-innovation switch: a torque step (see the docstring).
+            now_torque = False
+            if torque_switch:
+                nu_t = (torque[k, c] - xm[A_T]) / np.sqrt(Pm[A_T, A_T] + r_t)
+                x[c, X_TMEAN] = (1.0 - innov_alpha) * x[c, X_TMEAN] + innov_alpha * nu_t
+                now_torque = (abs(nu_t) > innov_torque_one
+                              or abs(x[c, X_TMEAN]) > innov_torque_mean * sd_mean)
+                if now_torque and not was_torque:
+                    Pm[A_T, A_T] -= q_t * dt
+                    _add_torque_step(Pm, q_torque_innov * dt, innov_torque_share, iw)
+            x[c, X_TSW] = 1.0 if now_torque else 0.0
             # Update with [ω, T]. The measurement selects state components, so the
             # sigma-point sums of 000 eq. (11) equal the blocks of P̄ exactly
             # (Σ W^c (χ − x̄)(χ − x̄)ᵀ = P̄ for these weights): evaluated in closed form.
@@ -302,8 +432,8 @@ def ukf_kernel(t: np.ndarray, omega: np.ndarray, torque: np.ndarray, iw: float, 
                 pxz[r, 0] = Pm[r, A_W]
                 pxz[r, 1] = Pm[r, A_T]
             pzz[1, 0] = pzz[0, 1]
-            pzz[0, 0] += r_omega
-            pzz[1, 1] += r_torque
+            pzz[0, 0] += r_w
+            pzz[1, 1] += r_t
             det = pzz[0, 0] * pzz[1, 1] - pzz[0, 1] * pzz[1, 0]
             i00 = pzz[1, 1] / det
             i01 = -pzz[0, 1] / det
@@ -325,8 +455,18 @@ def ukf_kernel(t: np.ndarray, omega: np.ndarray, torque: np.ndarray, iw: float, 
             fx[k, c] = (x[c, A_T] - iw * x[c, A_A]) / radius
             var = (P[c, A_T, A_T] - 2.0 * iw * P[c, A_T, A_A] + iw * iw * P[c, A_A, A_A])
             sigma[k, c] = np.sqrt(max(var, 0.0)) / radius
-            high[k, c] = is_high or now_innov
+            high[k, c] = is_high or now_innov or now_torque
         _push(hist_t, hist_w, t[k], omega[k])
+
+
+@njit(**_JIT)
+def _add_torque_step(Pm: np.ndarray, q: float, share: float, iw: float) -> None:
+    """Add a torque random-walk variance q to P̄, the share ``share`` of it along
+    "F_x held" (ΔT = I_w Δω̇: var(Δω̇) = q/I_w², cov(Δω̇, ΔT) = q/I_w), the rest on T alone."""
+    Pm[A_T, A_T] += q
+    Pm[A_A, A_A] += share * q / (iw * iw)
+    Pm[A_A, A_T] += share * q / iw
+    Pm[A_T, A_A] += share * q / iw
 
 
 @njit(**_JIT)
@@ -481,8 +621,8 @@ class LongitudinalEstimator:
         """Forget the state; the next sample initialises it."""
         window = self.ukf.omega_dot_window
         dim = 3 if self.method == "ukf" else 2
-        # ukf: columns 3, 4 hold the innovation switch's running mean and flag
-        self._x = np.zeros((4, 5 if self.method == "ukf" else dim))
+        # ukf: columns 3.. hold the switches' and noise trackers' state (X_* constants)
+        self._x = np.zeros((4, UKF_COLS if self.method == "ukf" else dim))
         self._P = np.zeros((4, dim, dim))
         self._hist_t = np.full(window, np.nan)
         self._hist_w = np.zeros((window, 4))
@@ -503,7 +643,11 @@ class LongitudinalEstimator:
             ukf_kernel(t, omega, torque, self.iw, self.radius, u.r_omega, u.r_torque, u.q_acc,
                        u.q_acc_high, u.q_torque, u.omega_dot_high, u.p0_acc, self._wm, self._wc,
                        self._tau, self._x, self._P, self._hist_t, self._hist_w, fx, sigma, high,
-                       u.q_acc_innov, u.innov_alpha, u.innov_mean, u.innov_one)
+                       u.q_acc_innov, u.innov_alpha, u.innov_mean, u.innov_one,
+                       u.noise_online, u.noise_prior_n, u.noise_gain_min, u.sigma_omega_min,
+                       u.sigma_torque_min, u.q_torque_innov, u.innov_torque_one,
+                       u.innov_torque_mean, u.innov_torque_share, u.resolve_time,
+                       u.q_torque_switched)
         elif self.method == "ukf_rw":
             high = np.empty((n, 4), dtype=np.bool_)
             ukf_rw_kernel(t, omega, torque, self.iw, self.radius, u.r_omega, u.r_torque,

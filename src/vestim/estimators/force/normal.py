@@ -59,7 +59,7 @@ def attitude_kernel(t: np.ndarray, ax: np.ndarray, ay: np.ndarray, p: np.ndarray
     p̄, ṗ̄, q̄, q̇̄].
 
     ``prm`` = [τ_φ, L_θ, c_roll, c_pitch, R, f_acc, undriven axle (0 front, 1 rear, −1
-    none), e_φ].
+    none), e_φ, L_φ].
 
     Roll, with a roll-rate channel, is a complementary filter of the gyro and gravity that
     needs no suspension parameters:
@@ -73,6 +73,9 @@ def attitude_kernel(t: np.ndarray, ax: np.ndarray, ay: np.ndarray, p: np.ndarray
     a sustained v̇_y that φ_g would read as roll, so the correction fades with its own size
     (Cauchy weight, e_φ), and φ_g is clipped to the roll a lateral load can cause,
     |φ_g| ≤ 0.02 |a_y| + 0.01 rad (0.02 rad per m/s² is softer than any passenger car).
+    When the vehicle file states its ``[suspension]`` (L_φ > 0), the quasi-static roll
+    c_roll a_y of that suspension replaces φ_g, with the constant gain L_φ: a stated model
+    is a fact about the car, and it does not read a slide's v̇_y as roll.
 
     Pitch is the quasi-static model θ_ss = c_pitch a_x corrected by the pitch rate with
     gain L_θ. Without a roll rate the quasi-static roll φ_ss = c_roll a_y is used sample by
@@ -88,6 +91,7 @@ def attitude_kernel(t: np.ndarray, ax: np.ndarray, ay: np.ndarray, p: np.ndarray
     wn = 2.0 * np.pi * prm[5]
     free = int(prm[6])
     e_slide = prm[7]
+    model_gain = prm[8]
     k_max, phi_0 = 0.02, 0.01
     w = np.empty(4)
     for k in range(t.shape[0]):
@@ -103,6 +107,8 @@ def attitude_kernel(t: np.ndarray, ax: np.ndarray, ay: np.ndarray, p: np.ndarray
         # m/s², softer than any passenger car; φ_0 for bank and sensor bias).
         lim = min(k_max * abs(ay[k]) + phi_0, 0.5)
         phi_g = np.arcsin(min(max(s_g, -lim), lim))
+        if model_gain > 0.0:  # a stated suspension: its quasi-static roll is the reference
+            phi_g = c_roll * ay[k]
         th_ss = c_pitch * ax[k]
         if state[3] == 0.0:
             state[0] = phi_g if not np.isnan(p[k]) else c_roll * ay[k]
@@ -123,8 +129,12 @@ def attitude_kernel(t: np.ndarray, ax: np.ndarray, ay: np.ndarray, p: np.ndarray
                 state[0] = c_roll * ay[k]
             else:
                 rate = p[k] + r[k] * np.tan(state[1])
-                e = (phi_g - state[0]) / e_slide
-                state[0] += dt * (rate + (phi_g - state[0]) / (tau * (1.0 + e * e)))
+                if model_gain > 0.0:
+                    gain = model_gain
+                else:
+                    e = (phi_g - state[0]) / e_slide
+                    gain = 1.0 / (tau * (1.0 + e * e))
+                state[0] += dt * (rate + gain * (phi_g - state[0]))
             if np.isnan(q[k]):
                 state[1] = th_ss
             else:

@@ -25,10 +25,14 @@ Passenger-car tires give C^x/F_z ≈ 10–30 on dry asphalt and roughly a third 
 that on ice and snow; the range is widened to 3–100 so that the LuGre tire of
 the vehicle files (σ0/κ ≈ 76) stays inside the projection bounds."""
 
-GENERIC_CY_PER_LOAD: tuple[float, float, float] = (2.0, 10.0, 25.0)
+GENERIC_CY_PER_LOAD: tuple[float, float, float] = (2.0, 10.0, 40.0)
 """Generic cornering stiffness per unit normal load (lower, nominal, upper), 1/rad.
 
-Dry asphalt gives C^y/F_z ≈ 10–20 /rad, snow and ice 3–6 /rad."""
+Dry asphalt gives C^y/F_z ≈ 10–20 /rad (stiff sport tires near 25–30), snow and ice
+3–6 /rad. The upper bound is a physical limit, not the expected range: the projection
+of 002 Sec. V clips each draw of w, and a bound within a few per-step sigmas of the
+truth truncates the draws and biases the estimate towards the inside (25 /rad held the
+cross-plant PAC2002 tire's 21.9 /rad 12 % low; docs/methods_stiffness.md)."""
 
 GENERIC_REL_SIGMA = 0.5
 """Initial one-sigma of the generic prior relative to its nominal value (ice and dry
@@ -87,7 +91,7 @@ class StiffnessPrior:
     def generic(cls, vehicle: Vehicle) -> StiffnessPrior:
         """Generic prior from the static axle loads F_z,f = m g l_r/L, F_z,r = m g l_f/L.
 
-        C^x = 20·F_z (bounds 3–100 ·F_z) and C^y = 10·F_z /rad (bounds 2–25 ·F_z),
+        C^x = 20·F_z (bounds 3–100 ·F_z) and C^y = 10·F_z /rad (bounds 2–40 ·F_z),
         one-sigma 50 % (see :data:`GENERIC_CX_PER_LOAD`, :data:`GENERIC_CY_PER_LOAD`):
         wide enough to hold ice and dry asphalt, so the filter has to find the level.
         """
@@ -137,6 +141,10 @@ class StiffnessConfig:
             noise there lets each particle trade its v_x (hence its slip λ, eq. (3))
             against its C^x, and on 002's own data it raised the C^x error from 0.8 % to
             4.6 % without helping on the double-track plant (docs/methods_stiffness.md).
+            The lateral components are small for the same reason: v_y is what trades the
+            front against the rear cornering stiffness (only the understeer combination is
+            observable in steady cornering), and 0.2 m/s² let it, and with it the
+            front/rear split, wander by ±10–50 % on the cross-plant logs.
             (0, 0, 0) is 002's eq. (9) exactly.
         initial_state_sd: one-sigma of x_0 = [v_x, v_y, ψ̇] (m/s, m/s, rad/s); 002 Sec. VI-A
             uses P_0 = diag(1, 1, (π/180)²).
@@ -179,7 +187,7 @@ class StiffnessConfig:
     accel_bias_walk: float = 3e-4
     bias_correlation_time: float = 5.0
     gyro_bias_walk: float = 1.5e-5
-    model_error: tuple[float, float, float] = (0.0, 0.2, 0.1)
+    model_error: tuple[float, float, float] = (0.0, 0.05, 0.05)
     initial_state_sd: tuple[float, float, float] = (1.0, 1.0, math.pi / 180.0)
     wheel_speed_cutoff: float = 8.0
     attitude_from_rates: bool = True

@@ -31,17 +31,22 @@ Deviations from the printed text, each the physically consistent reading:
 
 Longitudinal deviation by drivetrain (002 after eq. (8)): w[W_CX] is ΔC_f^x for
 FWD and AWD and ΔC_r^x for RWD. 002 keeps the other axle's longitudinal
-stiffness at its nominal value. We let it follow the relative change of the
-same axle's cornering stiffness, ΔC_r^x = ΔC_r^y · C_{r,n}^x / C_{r,n}^y for FWD
-and AWD (ΔC_f^x = ΔC_f^y · C_{f,n}^x / C_{f,n}^y for RWD): one road under the
-axle changes both directions alike. The undriven axle is what ties v_x to the
-wheel speeds; tied to the *driven* axle's ΔC^x instead, a low ΔC^x estimate
-lets v_x drift freely and the filter locks onto (small ΔC^x, wrong v_x, wrong
-a_x bias); held at nominal as in 002, its 30 % error during braking (brakes
-act on all four wheels) biases ΔC^x. For AWD 002 suggests estimating front and
-rear ΔC^x "iteratively"; with similar slip on both axles a_x only observes their
-sum, so we estimate the front one and tie the rear as for FWD. The ties are
-carried in the parameter vector (``P_KXF``, ``P_KXR``, ``P_TXF``, ``P_TXR``).
+stiffness at its nominal value. We let it follow the same *relative* change,
+ΔC_r^x = w_x · C_{r,n}^x / C_{f,n}^x for FWD and AWD (ΔC_f^x = w_x · C_{f,n}^x /
+C_{r,n}^x for RWD): one road under both axles changes both longitudinal slip
+stiffnesses alike, and the nominal ratio is the static load ratio of the generic
+prior (C ∝ F_z). The undriven axle is what ties v_x to the wheel speeds during
+braking (the brakes act on all four wheels). Held at nominal as in 002, its
+error after a road change biases w_x (on the cross-plant logs the braked axle
+pulled the estimate 10–30 % off); tied instead to the same axle's cornering
+stiffness (ΔC^x = ΔC^y C_n^x/C_n^y, the previous choice) it inherits the ratio
+C^x/C^y of the prior (2 for the generic prior), which a real tire need not have
+(PAC2002 of the cross-plant logs: ≈ 1), and its braking force came out twice
+the plant's, which the filter paid for with C^x 20–56 % low. For AWD 002
+suggests estimating front and rear ΔC^x "iteratively"; with similar slip on
+both axles a_x only observes their sum, so the common relative change is what
+is identifiable. The ties are carried in the parameter vector (``P_KXF``,
+``P_KXR``, ``P_TXF``, ``P_TXR``; the τ terms are zero with this choice).
 
 The dynamics are affine in w, so the Euler step (002 eq. (5), (9)) is
 x_{k+1} = f(x_k, u_k) + g(x_k, u_k) w_k exactly, and the measurement (12) is
@@ -126,19 +131,22 @@ class SingleTrackParams:
     @classmethod
     def from_vehicle(cls, vehicle: Vehicle, nominal: tuple[float, float, float, float],
                      v_min: float = 1.0) -> SingleTrackParams:
-        """Geometry and inertia from ``vehicle.body``, drag from ``vehicle.aerodynamics``."""
-        b, a = vehicle.body, vehicle.aerodynamics
+        """Geometry and inertia from ``vehicle.body``, drag from ``vehicle.stated_aerodynamics``."""
+        b, a = vehicle.body, vehicle.stated_aerodynamics
         return cls(mass=b.mass, yaw_inertia=b.yaw_inertia, lf=b.lf, lr=b.lr,
                    wheel_radius=b.wheel_radius, nominal=nominal, drivetrain=b.drivetrain,
                    v_min=v_min, drag=0.5 * a.air_density * a.drag_area)
 
     @property
     def longitudinal_split(self) -> tuple[float, float, float, float]:
-        """(κ_f, κ_r, τ_f, τ_r): ΔC_f^x = κ_f w_x + τ_f w_yf and ΔC_r^x = κ_r w_x + τ_r w_yr."""
-        cxf, cxr, cyf, cyr = self.nominal
+        """(κ_f, κ_r, τ_f, τ_r): ΔC_f^x = κ_f w_x + τ_f w_yf and ΔC_r^x = κ_r w_x + τ_r w_yr.
+
+        The undriven axle follows the driven axle's relative change (module docstring):
+        τ_f = τ_r = 0 and κ = C_n^x(undriven)/C_n^x(driven) for it."""
+        cxf, cxr, _, _ = self.nominal
         if self.drivetrain == "rwd":
-            return 0.0, 1.0, cxf / cyf, 0.0
-        return 1.0, 0.0, 0.0, cxr / cyr
+            return cxf / cxr, 1.0, 0.0, 0.0
+        return 1.0, cxr / cxf, 0.0, 0.0
 
     @property
     def longitudinal_name(self) -> str:
@@ -175,7 +183,7 @@ class SingleTrackParams:
         c = np.asarray(c, dtype=float)
         cxf, cxr, cyf, cyr = self.nominal
         wx = c[..., 1] - cxr if self.drivetrain == "rwd" else c[..., 0] - cxf
-        # the tied component is implied by the lateral one and not inverted
+        # the tied component is implied by w_x and not inverted
         return np.stack([wx, c[..., 2] - cyf, c[..., 3] - cyr], axis=-1)
 
 

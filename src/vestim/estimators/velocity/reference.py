@@ -65,7 +65,10 @@ class ReferenceParams:
         k_rel: relative error of the nominal cornering stiffness (σ of the pseudo-measurement
             grows by k_rel·|v_x α|).
         gate_vy: innovation gate of the v_y pseudo-measurements, standard deviations.
-        tau_vy: correlation time of their error, s (see :func:`_lateral_update`).
+        tau_vy: correlation time of their error, s (see :func:`_lateral_update`); 0.1 s:
+            with the stiffness identified online the bound is no longer off by the nominal
+            stiffness for seconds at a time (1 s let v_y drift 0.06 m/s on the crossplant
+            slalom, x08).
         side_vy: innovation (m/s) on the allowed side of the linear-tire bound at which its
             slip-dependent σ doubles.
         tau_wheel: correlation time of a wheel's slip error, s: the slip-evidence part of
@@ -79,6 +82,18 @@ class ReferenceParams:
         torque_dead: |torque| (N m) below which a wheel counts as neither driven nor braked
             for the slip-signed inflation (torque-sensor noise at standstill, σ ≈ 6 N m,
             would otherwise make the inflation one-sided at random and bias b_x).
+        k_comb: slip ratio λ_c of an axle's wheels at which the v_y bound's one-sidedness
+            doubles (side_vy / (1 + (λ/λ_c)²)): a tire in longitudinal slip is in combined
+            slip and makes less lateral force than the linear tire says.
+        alpha_lin: linear-tire slip angle |α| (rad) at which the v_y pseudo-measurements are
+            half way from a value (k_rel, tau_vy, side_vy, gate_vy: the linear range, with the
+            stiffness identified online) to a bound (the ``*_sat`` values: a saturating tire
+            of unknown friction), blend 1/(1 + (α/α_lin)⁴).
+        k_rel_sat, tau_vy_sat, side_vy_sat, gate_vy_sat: k_rel, tau_vy, side_vy, gate_vy of a
+            saturating axle.
+        sigma_gnss: one-sigma of a ``gnss_speed`` fix as a CG-speed measurement, m/s (before
+            the τ_wheel/T_s inflation that every extra CG-speed measurement gets: receiver
+            latency and multipath make its error persist).
         sigma_corner_slip: one-sigma (m/s) of the fused pipeline's corner-observer CG speed,
             which enters only while ≥ 3 corners are in high slip (before the τ/T_s
             inflation). 3 m/s: with 1 m/s the corner KF's tire-model bias in moderate
@@ -102,7 +117,7 @@ class ReferenceParams:
     bias_y_max: float = 0.5
     k_rel: float = 0.3
     gate_vy: float = 6.0
-    tau_vy: float = 1.0
+    tau_vy: float = 0.1
     side_vy: float = 1.0
     tau_wheel: float = 1.0
     acc_dead: float = 3.0
@@ -110,8 +125,15 @@ class ReferenceParams:
     q_gyro_bias: float = 1.0e-9
     gyro_bias_sd: float = 0.003
     torque_dead: float = 20.0
+    k_comb: float = 0.1
+    alpha_lin: float = 0.015
+    k_rel_sat: float = 1.0
+    tau_vy_sat: float = 1.0
+    side_vy_sat: float = 0.05
+    gate_vy_sat: float = 3.0
     window: int = 20
     sigma_corner_slip: float = 3.0
+    sigma_gnss: float = 0.05
 
 
 @dataclass(frozen=True)
@@ -134,6 +156,9 @@ class StiffnessParams:
             which would otherwise be read as compliance.
         tau_lp: time constant of the low-pass applied to both sides, s: noise on the
             estimated μ_yr − μ_yf (the regressor) would bias the compliance towards 0.
+        e_robust: band-passed residual (rad) at which a sample's weight is halved (Cauchy):
+            the onset of saturation or of combined slip moves L r/v_x − δ where the linear
+            tire does not.
     """
 
     prior_sd: float = 0.3
@@ -142,15 +167,17 @@ class StiffnessParams:
     mu_linear: float = 0.3
     v_min: float = 5.0
     c_min: float = 8.0
-    c_max: float = 40.0
+    c_max: float = 30.0
     tau_hp: float = 1.0
     tau_lp: float = 0.1
+    e_robust: float = 0.002
 
 
 def stiffness_params(c0: float, p: StiffnessParams, radius: float, wheelbase: float) -> np.ndarray:
     """Parameter vector of :func:`axle_slip_angles` from the nominal c₀ (1/rad)."""
     return np.array([1.0 / c0, (p.sigma_kappa * c0 / p.prior_sd) ** 2, p.tau, p.mu_linear,
-                     p.v_min, p.c_min, p.c_max, radius, wheelbase, p.tau_hp, p.tau_lp])
+                     p.v_min, p.c_min, p.c_max, radius, wheelbase, p.tau_hp, p.tau_lp,
+                     p.e_robust])
 
 
 @njit(**_JIT)
@@ -173,9 +200,9 @@ def axle_slip_angles(t: np.ndarray, omega: np.ndarray, yaw_rate: np.ndarray,
     ``state`` = [Σλ, Σλx, Σλy, Σλx², Σλxy, t_prev, started]; ``out_c`` (n,) the c used.
     NaN where ΣF_z ≤ 1 N (lifted axle).
     """
-    w0, p0, tau, mu_lin, v_min, c_min, c_max, radius, wheelbase, tau_hp, tau_lp = (
+    w0, p0, tau, mu_lin, v_min, c_min, c_max, radius, wheelbase, tau_hp, tau_lp, e_rob = (
         prm[0], prm[1], prm[2], prm[3], prm[4], prm[5], prm[6], prm[7], prm[8], prm[9],
-        prm[10])
+        prm[10], prm[11])
     w = np.empty(4)
     for k in range(t.shape[0]):
         fzf = fz[k, 0] + fz[k, 1]
@@ -205,13 +232,83 @@ def axle_slip_angles(t: np.ndarray, omega: np.ndarray, yaw_rate: np.ndarray,
             state[1] += g * (state[8] - state[1])
             x = state[7] - state[0]
             y = state[8] - state[1]
-            state[3] += x * x
-            state[4] += x * y
+            # Cauchy weight on the residual against the current compliance: the onset of
+            # saturation or combined slip makes y jump where x does not, and would be read
+            # as a stiff tire.
+            e = (y - x * (state[4] + p0 * w0) / (state[3] + p0)) / e_rob
+            wgt = 1.0 / (1.0 + e * e)
+            state[3] += wgt * x * x
+            state[4] += wgt * x * y
         comp = (state[4] + p0 * w0) / (state[3] + p0)
         c = min(max(1.0 / comp if comp > 0.0 else c_max, c_min), c_max)
         out_c[k] = c
         out[k, 0] = -mu_f / c
         out[k, 1] = -mu_r / c
+
+
+@dataclass(frozen=True)
+class RadiusParams:
+    """Online wheel-radius scale from a sparse ``gnss_speed`` (:func:`radius_scale`).
+
+    Attributes:
+        prior_fixes: weight of the prior scale 1 (the file's wheel_radius), in fixes at
+            ``prior_speed``.
+        prior_speed: speed of those prior fixes, m/s.
+        tau: forgetting time, s (tire wear, pressure and load change slowly).
+        v_min: speed below which a fix is not used, m/s (GNSS speed noise dominates).
+        a_max: |a_x| above which a fix is not used, m/s² (wheel slip, and the receiver's
+            latency against the wheel speeds, which reads as a scale error).
+        s_min, s_max: physical bounds of the scale (a radius off by more than 8 % is a wrong
+            vehicle file, not tire growth).
+    """
+
+    prior_fixes: float = 20.0
+    prior_speed: float = 10.0
+    tau: float = 600.0
+    v_min: float = 3.0
+    a_max: float = 1.5
+    s_min: float = 0.92
+    s_max: float = 1.08
+
+
+def radius_params(p: RadiusParams, radius: float) -> np.ndarray:
+    """Parameter vector of :func:`radius_scale`."""
+    return np.array([radius, p.prior_fixes * p.prior_speed**2, p.tau, p.v_min, p.a_max,
+                     p.s_min, p.s_max])
+
+
+@njit(**_JIT)
+def radius_scale(t: np.ndarray, omega: np.ndarray, gnss: np.ndarray, ax: np.ndarray,
+                 prm: np.ndarray, state: np.ndarray, out: np.ndarray) -> None:
+    """Scale s of the effective rolling radius (R_eff = s R) from the GNSS speed, per sample.
+
+    Least squares of the fixes g_k ≈ s v_w,k (v_w: the mean R ω of the two middle wheels,
+    robust to one slipping wheel) with exponential forgetting and a prior s = 1 of weight
+    W₀ (in (m/s)²): s = (Σλ g v_w + W₀)/(Σλ v_w² + W₀), clipped to [s_min, s_max]. Fixes at
+    low speed or high |a_x| are left out. Without fixes s stays 1 (the file's radius).
+    ``prm`` from :func:`radius_params`: [R, W₀, τ, v_min, a_max, s_min, s_max];
+    ``state`` = [Σλ g v_w, Σλ v_w², t_prev, started].
+    """
+    radius, w0, tau, v_min, a_max, s_min, s_max = (prm[0], prm[1], prm[2], prm[3], prm[4],
+                                                   prm[5], prm[6])
+    w = np.empty(4)
+    for k in range(t.shape[0]):
+        if state[3] == 1.0:
+            lam = np.exp(-(t[k] - state[2]) / tau)
+            state[0] *= lam
+            state[1] *= lam
+        state[2] = t[k]
+        state[3] = 1.0
+        g = gnss[k]
+        if not np.isnan(g) and abs(ax[k]) < a_max:
+            for i in range(4):
+                w[i] = omega[k, i]
+            w.sort()
+            v_w = 0.5 * radius * (w[1] + w[2])
+            if v_w > v_min:
+                state[0] += g * v_w
+                state[1] += v_w * v_w
+        out[k] = min(max((state[0] + w0) / (state[1] + w0), s_min), s_max)
 
 
 @njit(**_JIT)
@@ -279,7 +376,8 @@ def reference_kernel(t: np.ndarray, omega: np.ndarray, torque: np.ndarray, mu_x:
 
     ``prm`` = [q_vx, q_vy, q_bias, r_wheel, k_mu, k_acc, slip_sign, gate, r_vy, k_vy,
     bias_max, q_bias_y, bias_y_max, k_rel, gate_vy, tau_vy, s_side, tau_wheel, acc_dead, k_lat,
-    q_gyro_bias, gyro_bias_sd, torque_dead].
+    q_gyro_bias, gyro_bias_sd, torque_dead, k_comb, alpha_lin, k_rel_sat, tau_vy_sat,
+    side_vy_sat, gate_vy_sat].
     ``axle_slip`` (n, 2): front and rear axle slip angles from the lateral forces and the
     nominal cornering stiffness, rad (spec sign: atan(v_yt/v_xt)); NaN where unknown.
     ``hist`` (m, 5): last m samples of (t, ω_fl…ω_rr) for ω̇; ``state`` = [t_prev, started,
@@ -292,10 +390,12 @@ def reference_kernel(t: np.ndarray, omega: np.ndarray, torque: np.ndarray, mu_x:
     q_vx, q_vy, q_b, r_w, k_mu, k_acc, s_sign, gate, r_vy, k_vy, bias_max = (
         prm[0], prm[1], prm[2], prm[3], prm[4], prm[5], prm[6], prm[7], prm[8], prm[9], prm[10])
     q_by, by_max, k_rel, gate_vy, tau_vy, s_side, tau_w, acc_dead, k_lat = prm[11:20]
-    q_br, gyro_sd, torque_dead = prm[20], prm[21], prm[22]
+    q_br, gyro_sd, torque_dead, k_comb = prm[20], prm[21], prm[22], prm[23]
+    alpha_lin, k_rel_sat, tau_sat, side_sat, gate_sat = prm[24:29]
     m = hist.shape[0]
     nx = x.shape[0]
     wheel_v = np.empty(4)
+    wheel_slip = np.zeros(4)
     for k in range(t.shape[0]):
         dt = t[k] - state[0]
         if state[1] == 0.0:
@@ -378,6 +478,7 @@ def reference_kernel(t: np.ndarray, omega: np.ndarray, torque: np.ndarray, mu_x:
             # it enters with the correlation-time inflation, like the lateral model error;
             # the gate uses the plain σ.
             slip_part = sig - sq_rw
+            wheel_slip[i] = abs(innov_pred) / max(abs(x[VX]), 1.0)
             if innov_pred * innov_pred > gate * gate * (P[VX, VX] + sig * sig):
                 res = np.nan
             else:
@@ -411,14 +512,28 @@ def reference_kernel(t: np.ndarray, omega: np.ndarray, torque: np.ndarray, mu_x:
         # integration (its drift held by b_y, learnt while the tires were linear) carries on.
         beta_acc = abs(f_y[k] - x[BY] - r_now * x[VX])
         d_f = 0.5 * (delta[k, 0] + delta[k, 1])
-        inflate = max(tau_vy / dt, 1.0) if dt > 0 else 1.0
         for a in range(2):
             alpha = axle_slip[k, a]
             if np.isnan(alpha):
                 continue
             z = (x[VX] * (alpha + d_f) - lf * r_now if a == 0 else x[VX] * alpha + lr * r_now)
-            sig = k_rel * abs(x[VX] * alpha) + k_vy * beta_acc
-            _lateral_update(x, P, z, alpha, r_vy, sig, inflate, s_side, gate_vy)
+            # In the linear range (|α| below α_lin) the linear tire gives a value: tight σ,
+            # short correlation, pulled on both sides; towards saturation (friction unknown)
+            # only a bound: σ k_rel_sat |v_x α|, a second of correlation, one-sided, 3σ gate.
+            # h blends the two by the slip angle itself.
+            q = (alpha / alpha_lin) ** 2
+            h = 1.0 / (1.0 + q * q)
+            sig = (k_rel_sat + h * (k_rel - k_rel_sat)) * abs(x[VX] * alpha) + k_vy * beta_acc
+            tau_a = tau_sat + h * (tau_vy - tau_sat)
+            inflate = max(tau_a / dt, 1.0) if dt > 0 else 1.0
+            side = side_sat + h * (s_side - side_sat)
+            # A wheel in longitudinal slip is in combined slip: its lateral force falls short
+            # of the linear tire's, so the bound's one-sidedness sharpens with the axle's
+            # larger slip ratio λ (wheel-speed innovation over speed): side/(1 + (λ/λ_c)²).
+            lam = max(wheel_slip[2 * a], wheel_slip[2 * a + 1]) / k_comb
+            side /= 1.0 + lam * lam
+            _lateral_update(x, P, z, alpha, r_vy, sig, inflate, side,
+                            gate_sat + h * (gate_vy - gate_sat))
         # The biases are physically bounded (sensor bias plus a grade or bank of at most
         # ~5 %): a larger value means slip or a sliding car is being explained away as bias.
         x[BX] = min(max(x[BX], -bias_max), bias_max)
@@ -464,7 +579,8 @@ class ReferenceFilter:
                               p.gate, p.r_vy, p.k_vy, p.bias_max, p.q_bias_y, p.bias_y_max,
                               p.k_rel, p.gate_vy, p.tau_vy, p.side_vy, p.tau_wheel,
                               p.acc_dead, p.k_lat, p.q_gyro_bias, p.gyro_bias_sd,
-                              p.torque_dead])
+                              p.torque_dead, p.k_comb, p.alpha_lin, p.k_rel_sat,
+                              p.tau_vy_sat, p.side_vy_sat, p.gate_vy_sat])
         self.reset()
 
     def reset(self) -> None:
