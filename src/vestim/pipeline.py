@@ -12,8 +12,10 @@ Outputs (spec names): ``vx``, ``vy``, ``sigma_vx``, ``sigma_vy``, per corner
 ``vx_*``, ``vy_*`` (wheel centre, body frame), ``vxt_*``, ``vyt_*`` (tire frame),
 ``slip_ratio_*``, ``slip_angle_*``, and the force stage's ``fx_*``, ``fy_*``,
 ``fz_*``, ``mu_x_*``, ``mu_y_*``, ``sigma_f*``, ``roll``, ``pitch``; plus
-``bias_ax`` (the reference filter's acceleration bias, m/s²). Only measured
-channels are read.
+``bias_ax`` (the reference filter's acceleration bias, m/s²),
+``cornering_stiffness`` (the online normalised cornering stiffness C_y/ΣF_z of the v_y
+bounds, 1/rad) and ``radius_scale`` (the effective-radius factor from ``gnss_speed``, 1
+without it). Only measured channels are read.
 """
 
 from __future__ import annotations

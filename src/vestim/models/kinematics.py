@@ -148,3 +148,13 @@ def slip_angle(vxt: np.ndarray, vyt: np.ndarray, eps: float = 0.5) -> np.ndarray
     out = np.empty(vxt.shape)
     _slip_angle(_flat(vxt), _flat(vyt), float(eps), out.reshape(-1))
     return out
+
+
+@njit(cache=True, error_model="numpy")
+def middle_wheel_speed(omega: np.ndarray, k: int, radius: float) -> float:
+    """Mean R ω of the two middle wheels of sample ``k`` (m/s): a speed reference robust to
+    one wheel spinning and one locking (``omega`` (n, 4) rad/s)."""
+    a, b, c, d = omega[k, 0], omega[k, 1], omega[k, 2], omega[k, 3]
+    hi = max(max(a, b), max(c, d))
+    lo = min(min(a, b), min(c, d))
+    return 0.5 * radius * (a + b + c + d - hi - lo)

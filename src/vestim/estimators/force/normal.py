@@ -44,6 +44,7 @@ from numba import njit
 
 from vestim.constants import G
 from vestim.io.vehicle import Vehicle
+from vestim.models.kinematics import middle_wheel_speed
 
 _JIT: dict[str, Any] = {"cache": True, "error_model": "numpy"}
 
@@ -93,15 +94,11 @@ def attitude_kernel(t: np.ndarray, ax: np.ndarray, ay: np.ndarray, p: np.ndarray
     e_slide = prm[7]
     model_gain = prm[8]
     k_max, phi_0 = 0.02, 0.01
-    w = np.empty(4)
     for k in range(t.shape[0]):
         if free >= 0:
             v_w = 0.5 * radius * (omega[k, 2 * free] + omega[k, 2 * free + 1])
         else:
-            for i in range(4):
-                w[i] = omega[k, i]
-            w.sort()
-            v_w = 0.5 * radius * (w[1] + w[2])
+            v_w = middle_wheel_speed(omega, k, radius)
         s_g = (ay[k] - r[k] * v_w) / G
         # A body rolls with its lateral load: |φ| ≤ k_max |a_y| + φ_0 (k_max 0.02 rad per
         # m/s², softer than any passenger car; φ_0 for bank and sensor bias).

@@ -38,6 +38,8 @@ from typing import Any
 import numpy as np
 from numba import njit
 
+from vestim.models.kinematics import middle_wheel_speed
+
 _JIT: dict[str, Any] = {"cache": True, "error_model": "numpy"}
 
 VX, VY, BX, BY, BR = 0, 1, 2, 3, 4
@@ -203,7 +205,6 @@ def axle_slip_angles(t: np.ndarray, omega: np.ndarray, yaw_rate: np.ndarray,
     w0, p0, tau, mu_lin, v_min, c_min, c_max, radius, wheelbase, tau_hp, tau_lp, e_rob = (
         prm[0], prm[1], prm[2], prm[3], prm[4], prm[5], prm[6], prm[7], prm[8], prm[9],
         prm[10], prm[11])
-    w = np.empty(4)
     for k in range(t.shape[0]):
         fzf = fz[k, 0] + fz[k, 1]
         fzr = fz[k, 2] + fz[k, 3]
@@ -215,10 +216,7 @@ def axle_slip_angles(t: np.ndarray, omega: np.ndarray, yaw_rate: np.ndarray,
         state[6] = 1.0
         state[3] *= lam
         state[4] *= lam
-        for i in range(4):
-            w[i] = omega[k, i]
-        w.sort()
-        v = 0.5 * radius * (w[1] + w[2])
+        v = middle_wheel_speed(omega, k, radius)
         if v > v_min and abs(mu_f) < mu_lin and abs(mu_r) < mu_lin:
             x = mu_r - mu_f
             y = wheelbase * yaw_rate[k] / v - 0.5 * (delta[k, 0] + delta[k, 1])
@@ -291,7 +289,6 @@ def radius_scale(t: np.ndarray, omega: np.ndarray, gnss: np.ndarray, ax: np.ndar
     """
     radius, w0, tau, v_min, a_max, s_min, s_max = (prm[0], prm[1], prm[2], prm[3], prm[4],
                                                    prm[5], prm[6])
-    w = np.empty(4)
     for k in range(t.shape[0]):
         if state[3] == 1.0:
             lam = np.exp(-(t[k] - state[2]) / tau)
@@ -301,10 +298,7 @@ def radius_scale(t: np.ndarray, omega: np.ndarray, gnss: np.ndarray, ax: np.ndar
         state[3] = 1.0
         g = gnss[k]
         if not np.isnan(g) and abs(ax[k]) < a_max:
-            for i in range(4):
-                w[i] = omega[k, i]
-            w.sort()
-            v_w = 0.5 * radius * (w[1] + w[2])
+            v_w = middle_wheel_speed(omega, k, radius)
             if v_w > v_min:
                 state[0] += g * v_w
                 state[1] += v_w * v_w
