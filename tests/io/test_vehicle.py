@@ -85,6 +85,22 @@ def test_missing_optional_tables_take_documented_defaults() -> None:
     assert default_suspension(b)["roll_stiffness_front_share"] == 0.55
 
 
+def test_given_records_the_stated_tables_and_estimators_see_no_default_drag() -> None:
+    """A file without [aerodynamics] keeps the simulator's defaults in ``aerodynamics`` but
+    ``stated_aerodynamics`` has no drag and no rolling resistance (000 eq. (1)): the
+    defaults describe vestim's simulated car (0.9 m², f = 0.012), not the user's."""
+    data = _builtin_dict()
+    full = vehicle_from_dict(data)
+    assert {"suspension", "aerodynamics", "powertrain", "magic_formula"} <= full.given
+    assert full.stated_aerodynamics == full.aerodynamics
+    del data["aerodynamics"]
+    bare = vehicle_from_dict(data)
+    assert "aerodynamics" not in bare.given
+    assert bare.aerodynamics.rolling_resistance == 0.012
+    assert bare.stated_aerodynamics.rolling_resistance == 0.0
+    assert bare.stated_aerodynamics.drag_area == 0.0
+
+
 def test_stiffness_table_is_optional() -> None:
     assert load_vehicle("hashemi_suv").stiffness is None
     data = _builtin_dict()

@@ -57,3 +57,30 @@ def test_vy_within_target_with_the_cornering_stiffness_30_percent_off(factor: fl
         ref = log["ref_vy"].to_numpy()[s]
         err = np.sqrt(np.mean((out["vy"].to_numpy()[s] - ref) ** 2))
         assert err <= max(0.04, 0.5 * np.sqrt(np.mean(ref**2))), name
+
+
+def test_braking_loads_need_the_pitch_inertia_term() -> None:
+    """x03 (AWD ABS braking on ice): the quasi-static load transfer alone leaves the ABS
+    cycling's pitch dynamics in the F_z error; less the body's I_y q̇ (from the pitch gyro)
+    the pooled F_z NRMS is ≤ 2 % (measured 1.79 %; 2.87 % without the inertia term, 2.23 %
+    with the default suspension's dynamic transfer at the session start)."""
+    log = pd.read_parquet(DATA / "x03_brake_ice_awd.parquet")
+    out = ForceEstimator(load_vehicle(str(DATA / "vehicle3_awd.toml"))).run(_measured(log))
+    s = log["t"].to_numpy() >= 0.5
+    corners = ("fl", "fr", "rl", "rr")
+    mse = np.mean([np.mean((out[f"fz_{c}"].to_numpy()[s] - log[f"ref_fz_{c}"].to_numpy()[s])
+                           ** 2) for c in corners])
+    peak = max(log[f"ref_fz_{c}"].abs().max() for c in corners)
+    assert 100 * np.sqrt(mse) / peak <= 2.0
+
+
+def test_gnss_speed_finds_the_rav4_wheel_radius() -> None:
+    """The RAV4 log's CAN wheel speeds read 0.86 % low against the pose reference
+    (shared/real/README.md); from its sparse 10 Hz gnss_speed the radius scale must end
+    within 0.3 % of 1.0087 (measured 1.008)."""
+    rav4 = DATA.parents[1] / "real" / "comma2k19_rav4"
+    if not rav4.exists():
+        pytest.skip(f"RAV4 log not found at {rav4}")
+    log = pd.read_parquet(rav4 / "seg40.parquet")
+    out = Pipeline(load_vehicle(str(rav4 / "vehicle.toml"))).run(_measured(log))
+    assert abs(out["radius_scale"].iloc[-1] - 1.0087) <= 0.003
