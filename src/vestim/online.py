@@ -123,8 +123,10 @@ def step_kernel(s: np.ndarray, out: np.ndarray, fprm: np.ndarray, nl_prm: np.nda
     weights = split_weights(fz, omega, torque, r1, radius, yw, fprm[8], fprm[9])
     fy = np.empty((1, 4))
     sig_fy = np.empty((1, 4))
-    lateral_kernel(t1, fx, delta, weights, fxa, fya, r1, drag, m, fprm[7], xw, yw, q_lat,
-                   r_lat, w4, c4, tau4, lat_x, lat_P, lat_state, fy, sig_fy)
+    speed = np.empty(1)
+    speed[0] = radius * np.median(omega[0])
+    lateral_kernel(t1, fx, delta, weights, fxa, fya, r1, drag, fz, speed, m, fprm[7], xw, yw,
+                   q_lat, r_lat, w4, c4, tau4, lat_x, lat_P, lat_state, fy, sig_fy)
     # --- velocity stage (Pipeline._advance) ---
     mu_x = normalised(fx, fz)
     mu_y = normalised(fy, fz)

@@ -45,3 +45,10 @@ def pooled_fy(name: str) -> float:
 def test_pooled_fy_within_the_cross_plant_target(name):
     """Pooled F_y NRMS (500 N floor, first 0.5 s skipped, as targets.py) ≤ 5 %."""
     assert pooled_fy(name) <= 5.0
+
+
+def test_kinematic_front_split_brings_x10_within_target():
+    """x10 (FWD, parallel steering, large δ at 5–24 m/s): the F_z-based front split alone
+    gave 5.61 %; the kinematic slip-angle difference Δα = δ_fr − δ_fl + r t_f sin δ̄/v_x with
+    the nominal c₀ = σ0y/κy (faded with the axle's utilisation) gives 4.19 %."""
+    assert pooled_fy("x10") <= 4.5

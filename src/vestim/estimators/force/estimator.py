@@ -64,6 +64,7 @@ class ForceConfig:
             correction is halved (a sliding car's v̇_y would otherwise read as roll).
         roll_gain: correction gain L_φ towards the quasi-static roll of a stated
             ``[suspension]``, 1/s (without one, the gyro/gravity filter of ``roll_tau``).
+        roll_bias_tau: time constant τ_b of the roll filter's gyro-bias integral, s.
         pitch_gain: correction gain L_θ of the pitch filter, 1/s.
         rate_filter_hz: corner frequency of the roll and pitch acceleration differentiators
             whose I ω̇ terms enter the load transfer, Hz (:func:`.normal.attitude_kernel`).
@@ -79,6 +80,7 @@ class ForceConfig:
     rate_filter_hz: float = 8.0
     roll_slide: float = 0.03
     roll_gain: float = 2.0
+    roll_bias_tau: float = 20.0
     pitch_gain: float = 2.0
 
     def __post_init__(self) -> None:
@@ -291,12 +293,12 @@ class ForceEstimator:
                                   {"fwd": 1.0, "rwd": 0.0}.get(b.drivetrain, -1.0),
                                   self.config.roll_slide,
                                   self.config.roll_gain if "suspension" in vehicle.given
-                                  else 0.0])
+                                  else 0.0, self.config.roll_bias_tau])
         self._xw = np.array([b.lf, b.lf, -b.lr, -b.lr])
         self._yw = 0.5 * np.array([b.track_f, -b.track_f, b.track_r, -b.track_r])
         self._w4, self._c4, self._tau4 = ukf_weights(4)
         lp = self.config.lateral
-        self._q_lat = lat.lateral_q(lp)
+        self._q_lat = lat.lateral_q(lp, vehicle.tire.sigma0_y / vehicle.tire.kappa_y)
         self._r_lat = np.array([(b.mass * lp.sigma_ax) ** 2, (b.mass * lp.sigma_ay) ** 2,
                                 lp.sigma_yaw**2, lp.sigma_split**2])
         a = vehicle.stated_aerodynamics
@@ -313,7 +315,7 @@ class ForceEstimator:
         # inertial force −I_w ω̇_i/R alone (every method is linear in the torque).
         self._lon_inertia = lon.LongitudinalEstimator(self.vehicle, cfg.longitudinal, cfg.ukf,
                                                       cfg.pid, cfg.uio)
-        self._att = np.zeros(8)
+        self._att = np.zeros(9)
         self._lat_x = np.zeros(lat.N_X)
         self._lat_P = np.zeros((lat.N_X, lat.N_X))
         self._lat_state = np.zeros(lat.N_STATE)
@@ -387,8 +389,9 @@ class ForceEstimator:
         lp = cfg.lateral
         weights = lat.split_weights(fz, u.omega, u.torque, u.yaw_rate, b.wheel_radius, self._yw,
                                     lp.load_exponent, lp.slip_scale)
-        lat.lateral_kernel(u.t, fx, u.delta, weights, f_x, f_y, u.yaw_rate, drag, b.mass,
-                           b.yaw_inertia, self._xw, self._yw, self._q_lat, self._r_lat,
+        speed = b.wheel_radius * np.median(u.omega, axis=1)
+        lat.lateral_kernel(u.t, fx, u.delta, weights, f_x, f_y, u.yaw_rate, drag, fz, speed,
+                           b.mass, b.yaw_inertia, self._xw, self._yw, self._q_lat, self._r_lat,
                            self._w4, self._c4, self._tau4, self._lat_x, self._lat_P,
                            self._lat_state, fy, sig_fy)
         return {"fx": fx, "sigma_fx": sig_fx, "fy": fy, "sigma_fy": sig_fy, "fz": fz,

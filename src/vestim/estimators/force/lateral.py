@@ -51,9 +51,10 @@ our simulator's Magic Formula is strongly degressive (γ = 1 doubles its
 step-steer error), so 0.85 stays. Known residuals not removable here:
 m f_y itself is off by the IMU bias plus the roll-estimate gravity leak
 (20–200 N on the crossplant logs, axle totals) and by the unsprung-mass
-dynamics (±0.9 kN spikes for 0.2 s at steering steps); with parallel steering
+dynamics (±0.9 kN spikes for 0.2 s at steering steps). With parallel steering
 at large δ and low speed the front wheels' kinematic slip angles differ by
-≈ r·t_f·sin δ/v_x, which the F_z-based front split does not know (x10).
+≈ r·t_f·sin δ/v_x; the split pseudo-measurement carries that difference with the
+nominal stiffness c₀ = σ0y/κy (``split_kinematic``, see the kernel).
 """
 
 from __future__ import annotations
@@ -72,7 +73,7 @@ _JIT: dict[str, Any] = {"cache": True, "error_model": "numpy"}
 FYF, FYR, DFYF, YAW = 0, 1, 2, 3
 N_X = 4
 N_Y = 4
-N_STATE = 13
+N_STATE = 15
 """Length of the kernel's carried state (see :func:`lateral_kernel`)."""
 
 
@@ -93,6 +94,11 @@ class LateralParams:
         adapt_tau: time constant of the running mean of the normalised innovations, s.
         adapt_nu: running-mean innovation at which the force random walk doubles.
         adapt_cap: largest factor on ``q_force`` (q_force·adapt_cap is the transient intensity).
+        bias_tau: time constant of the running mean of f_y − r·v (the lateral balance's
+            low-frequency offset, removed from m f_y), s; 0 disables it.
+        bias_scale: |f_y − r v − b̂| (m/s²) at which a sample's weight in that mean halves.
+        split_kinematic: use the kinematic front slip-angle difference in the split
+            pseudo-measurement (nominal stiffness c₀ = σ0y/κy); False gives F̄_yf = ρ_f F_yf.
     """
 
     q_force: float = 2.5e5
@@ -107,13 +113,20 @@ class LateralParams:
     adapt_tau: float = 0.05
     adapt_nu: float = 0.15
     adapt_cap: float = 24.0
+    bias_tau: float = 0.0
+    bias_scale: float = 0.1
+    split_kinematic: bool = True
 
 
-def lateral_q(lp: LateralParams) -> np.ndarray:
+def lateral_q(lp: LateralParams, c0: float = 0.0) -> np.ndarray:
     """The ``q`` argument of :func:`lateral_kernel`: [q_force, q_force, q_split, q_yaw,
-    adapt_tau, adapt_nu, adapt_cap]."""
+    adapt_tau, adapt_nu, adapt_cap, bias_tau, c₀ of the kinematic split (0: none), bias_scale].
+
+    ``c0``: the nominal normalised cornering stiffness C_y/F_z, 1/rad (σ0y/κy of the
+    vehicle file's [tire] table)."""
     return np.array([lp.q_force, lp.q_force, lp.q_split, lp.q_yaw, lp.adapt_tau, lp.adapt_nu,
-                     lp.adapt_cap])
+                     lp.adapt_cap, lp.bias_tau, c0 if lp.split_kinematic else 0.0,
+                     lp.bias_scale])
 
 
 @njit(**_JIT)
@@ -195,7 +208,7 @@ def _cross(a: np.ndarray, am: np.ndarray, b: np.ndarray, bm: np.ndarray, wc: np.
 @njit(**_JIT)
 def lateral_kernel(t: np.ndarray, fx: np.ndarray, delta: np.ndarray, weights: np.ndarray,
                    f_x: np.ndarray, f_y: np.ndarray, yaw_rate: np.ndarray, drag: np.ndarray,
-                   mass: float, iz: float, xw: np.ndarray, yw: np.ndarray,
+                   fz: np.ndarray, speed: np.ndarray, mass: float, iz: float, xw: np.ndarray, yw: np.ndarray,
                    q: np.ndarray, r_diag: np.ndarray, wm: np.ndarray, wc: np.ndarray, tau: float,
                    x: np.ndarray, P: np.ndarray, state: np.ndarray,
                    fy_out: np.ndarray, sig_out: np.ndarray) -> None:
@@ -204,10 +217,11 @@ def lateral_kernel(t: np.ndarray, fx: np.ndarray, delta: np.ndarray, weights: np
     Inputs per sample: fx (n, 4) tire-frame longitudinal forces, delta (n, 4)
     road-wheel angles (rear 0), weights (n, 4) lateral-capacity weights of
     :func:`split_weights`, f_x, f_y road-frame
-    specific force (m/s²), yaw_rate (rad/s), drag (N). ``q`` from :func:`lateral_q`.
+    specific force (m/s²), yaw_rate (rad/s), drag (N), fz (n, 4) normal loads (N), speed
+    (n,) a wheel-speed reference of v_x (m/s). ``q`` from :func:`lateral_q`.
     ``state`` (:data:`N_STATE`,) = [t_prev, started, F_x (4) and δ (4) of the previous
     sample, held over the interval, ν̄ of the lateral balance, ν̄ of the yaw rate, factor
-    on the force random walk].
+    on the force random walk, offset b̂ of f_y (m/s²), time since the start (s)].
     Outputs: fy_out (n, 4) tire-frame lateral force per corner, sig_out (n, 4) one-sigma.
     """
     n = t.shape[0]
@@ -245,8 +259,11 @@ def lateral_kernel(t: np.ndarray, fx: np.ndarray, delta: np.ndarray, weights: np
             state[10] = 0.0
             state[11] = 0.0
             state[12] = 1.0
+            state[13] = 0.0
+            state[14] = 0.0
         else:
             dt = t[k] - state[0]
+            state[14] += dt
             # Prediction: forces random walk, yaw rate by the yaw moment (001 eq. (9)).
             sigma_points(x, P, tau, L, pts)
             for i in range(npts):
@@ -299,9 +316,27 @@ def lateral_kernel(t: np.ndarray, fx: np.ndarray, delta: np.ndarray, weights: np
             for j in range(N_Y):
                 Pyy[j, j] += r_diag[j]
             y[0] = mass * f_x[k] + drag[k] - ym[0]
-            y[1] = mass * f_y[k] - ym[1]
+            y[1] = mass * (f_y[k] - state[13]) - ym[1]
             y[2] = yaw_rate[k] - ym[2]
             y[3] = -ym[3]
+            if q[8] > 0.0:
+                # Kinematic front split: the outer front wheel runs faster, so with one
+                # steering angle the slip angles differ by r t_f sin δ/v_x; Ackermann
+                # geometry (δ_fl ≠ δ_fr) takes that back. Linear tires C_i = c₀ F_z,i
+                # then move F̄_yf from ρ F_yf by (1 − ρ²) C_f Δα/2 with
+                # Δα = δ_fr − δ_fl + r t_f sin δ̄/v_x. Bounded by |F_yf| (neither wheel
+                # reverses its force).
+                v = max(speed[k], 3.0)
+                c_f = q[8] * (max(fz[k, 0], 0.0) + max(fz[k, 1], 0.0))
+                d_kin = 0.5 * (1.0 - rho * rho) * c_f * (
+                    delta[k, 1] - delta[k, 0] + xm[YAW] * (yw[0] - yw[1])
+                    * np.sin(0.5 * (delta[k, 0] + delta[k, 1])) / v)
+                # Off the linear range the secant stiffness falls: the term fades with the
+                # axle's lateral utilisation μ_f = |F_yf|/F_z,f (half at μ_f = 0.2).
+                mu_f = abs(xm[FYF]) / max(c_f / q[8], 1.0)
+                d_kin /= 1.0 + (mu_f / 0.2) ** 2
+                lim = abs(xm[FYF])
+                y[3] += min(max(d_kin, -lim), lim)
             # K = Pxy Pyy⁻¹ by Cholesky of Pyy (SPD): solve Pyy Kᵀ = Pxyᵀ.
             # Innovation-matched force random walk: the running means of the
             # normalised lateral-balance and yaw-rate innovations are ~0 while the
@@ -342,6 +377,17 @@ def lateral_kernel(t: np.ndarray, fx: np.ndarray, delta: np.ndarray, weights: np
                     v = 0.5 * (P[r, c2] + P[c2, r])
                     P[r, c2] = v
                     P[c2, r] = v
+        if q[7] > 0.0:
+            # Offset of the lateral balance: f_y − r v_x is the sideslip acceleration v̇_y,
+            # zero on average, plus what the attitude filter leaks into f_y at low
+            # frequency (roll-gyro bias times its crossover time, accelerometer bias);
+            # its running mean (memory min(max(elapsed, 1 s), bias_tau)) is removed.
+            # A slide (sustained v̇_y) or a spinning wheel in the speed reference makes
+            # f_y − r v large: a Cauchy weight (scale ``bias_scale``) leaves such samples out.
+            mem = min(max(state[14], 1.0), q[7])
+            g_b = min((t[k] - state[0]) / mem if state[14] > 0.0 else 0.0, 1.0)
+            e_b = f_y[k] - yaw_rate[k] * speed[k] - state[13]
+            state[13] += g_b * e_b / (1.0 + (e_b / q[9]) ** 2)
         state[0] = t[k]
         state[2:6] = fx[k]  # held over the next interval
         state[6:10] = delta[k]

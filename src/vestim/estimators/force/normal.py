@@ -57,15 +57,17 @@ def attitude_kernel(t: np.ndarray, ax: np.ndarray, ay: np.ndarray, p: np.ndarray
                     state: np.ndarray, roll: np.ndarray, pitch: np.ndarray,
                     roll_acc: np.ndarray, pitch_acc: np.ndarray) -> None:
     """Attitude filter over a chunk, in place on ``state`` = [φ̂, θ̂, t_prev, started,
-    p̄, ṗ̄, q̄, q̇̄].
+    p̄, ṗ̄, q̄, q̇̄, b̂_p].
 
     ``prm`` = [τ_φ, L_θ, c_roll, c_pitch, R, f_acc, undriven axle (0 front, 1 rear, −1
-    none), e_φ, L_φ].
+    none), e_φ, L_φ, τ_b].
 
     Roll, with a roll-rate channel, is a complementary filter of the gyro and gravity that
     needs no suspension parameters:
-        φ̂̇ = p + r tan θ̂ + (φ_g − φ̂)/(τ_φ (1 + (e/e_φ)²)),   φ_g = asin((a_y − r v_w)/g),
-    with e = φ_g − φ̂. p + r tan θ is the Euler roll rate (the gyro measures body rates);
+        φ̂̇ = p + r tan θ̂ − b̂_p + w (φ_g − φ̂)/τ_φ,   b̂̇_p = −w (φ_g − φ̂)/(τ_φ τ_b),
+    φ_g = asin((a_y − r v_w)/g), w = 1/(1 + (e/e_φ)²), e = φ_g − φ̂ (a proportional-
+    integral complementary filter whose slow integral state b̂_p, time constant τ_b, takes
+    the roll-gyro bias). p + r tan θ is the Euler roll rate (the gyro measures body rates);
     φ_g is the tilt the IMU's lateral specific force shows beyond the centripetal
     acceleration r·v_x (v_w: the mean R ω of the undriven axle, or of the two middle
     wheels with four driven). φ_g also holds the sideslip acceleration v̇_y, the
@@ -93,6 +95,7 @@ def attitude_kernel(t: np.ndarray, ax: np.ndarray, ay: np.ndarray, p: np.ndarray
     free = int(prm[6])
     e_slide = prm[7]
     model_gain = prm[8]
+    tau_b = prm[9]
     k_max, phi_0 = 0.02, 0.01
     for k in range(t.shape[0]):
         if free >= 0:
@@ -115,6 +118,7 @@ def attitude_kernel(t: np.ndarray, ax: np.ndarray, ay: np.ndarray, p: np.ndarray
             state[6] = 0.0 if np.isnan(q[k]) else q[k]
             state[5] = 0.0
             state[7] = 0.0
+            state[8] = 0.0
         else:
             dt = t[k] - state[2]
             # Second-order differentiators (semi-implicit Euler, stable for ω_n dt < 2).
@@ -127,11 +131,16 @@ def attitude_kernel(t: np.ndarray, ax: np.ndarray, ay: np.ndarray, p: np.ndarray
             else:
                 rate = p[k] + r[k] * np.tan(state[1])
                 if model_gain > 0.0:
-                    gain = model_gain
+                    state[0] += dt * (rate + model_gain * (phi_g - state[0]))
                 else:
-                    e = (phi_g - state[0]) / e_slide
-                    gain = 1.0 / (tau * (1.0 + e * e))
-                state[0] += dt * (rate + gain * (phi_g - state[0]))
+                    # Second-order complementary filter: the integral state b̂_p takes the
+                    # roll gyro's bias, which a first-order filter would leave as a roll
+                    # error b_p τ_φ (0.002 rad/s × 2 s: 80–150 N of gravity in m f_y).
+                    err = phi_g - state[0]
+                    e = err / e_slide
+                    w = 1.0 / (1.0 + e * e)
+                    state[0] += dt * (rate - state[8] + w * err / tau)
+                    state[8] -= dt * w * err / (tau * tau_b)
             if np.isnan(q[k]):
                 state[1] = th_ss
             else:
