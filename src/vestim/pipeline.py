@@ -14,8 +14,9 @@ Outputs (spec names): ``vx``, ``vy``, ``sigma_vx``, ``sigma_vy``, per corner
 ``fz_*``, ``mu_x_*``, ``mu_y_*``, ``sigma_f*``, ``roll``, ``pitch``; plus
 ``bias_ax`` (the reference filter's acceleration bias, m/s²),
 ``cornering_stiffness`` (the online normalised cornering stiffness C_y/ΣF_z of the v_y
-bounds, 1/rad) and ``radius_scale`` (the effective-radius factor from ``gnss_speed``, 1
-without it). Only measured channels are read.
+bounds, 1/rad), ``radius_scale`` (the effective-radius factor from ``gnss_speed``, 1
+without it) and ``gnss_latency`` (the receiver's latency found from it, s; 0 without
+it). Only measured channels are read.
 """
 
 from __future__ import annotations
@@ -54,8 +55,8 @@ from vestim.estimators.velocity.reference import (
     ReferenceParams,
     StiffnessParams,
     axle_slip_angles,
+    gnss_calibration,
     radius_params,
-    radius_scale,
     stiffness_params,
 )
 from vestim.io.vehicle import Vehicle
@@ -173,7 +174,8 @@ class Pipeline:
                                            self.config.cornering, b.wheel_radius, b.wheelbase)
         self._stiff_state = np.zeros(9)
         self._radius_prm = radius_params(self.config.radius, b.wheel_radius)
-        self._radius_state = np.zeros(4)
+        self._radius_state = np.zeros(9)
+        self._t_gnss = np.nan  # time of the previous sample, for the GNSS fixes' weight
         self.force = ForceEstimator(vehicle, ForceConfig(longitudinal=self.config.force,
                                                          normal=self.config.normal))
         self.reference = ReferenceFilter(b.wheel_radius, b.lf, b.lr, self._xw, self._yw,
@@ -205,6 +207,7 @@ class Pipeline:
         self._prev = np.array([np.nan, 0.0])
         self._stiff_state[:] = 0.0
         self._radius_state[:] = 0.0
+        self._t_gnss = np.nan
         self._fused_is_reference = True
         self._step_args = None
         self._step_rates = None
@@ -281,15 +284,23 @@ class Pipeline:
         axle_slip_angles(u.t, u.omega, u.yaw_rate, u.delta, res["fy"], fz, self._stiff_prm,
                          self._stiff_state, axle_slip, c_y)
         # The velocity stage sees the wheel speeds at the effective radius that the GNSS
-        # speed shows (scale 1 without gnss_speed).
-        scale = np.empty(n)
-        radius_scale(u.t, u.omega, u.gnss_speed, u.ax, self._radius_prm, self._radius_state,
-                     scale)
+        # speed shows, and the fixes brought forward by the receiver's latency (scale 1 and
+        # no measurement without gnss_speed).
+        scale, latency, gnss_now = np.empty((3, n))
+        gnss_calibration(u.t, u.omega, u.gnss_speed, self._radius_prm, self._radius_state,
+                         scale, latency, gnss_now)
         if np.any(scale != 1.0):
             u = replace(u, omega=np.ascontiguousarray(u.omega * scale[:, None]))
-        gnss = np.isfinite(u.gnss_speed)
-        extra = u.gnss_speed[:, None]
-        var = np.where(gnss, self.config.reference.sigma_gnss**2, np.nan)[:, None]
+        gnss = np.isfinite(gnss_now)
+        extra = gnss_now[:, None]
+        # A fix's error is white at the receiver's rate: undo the τ_wheel/T_s inflation the
+        # filter gives every extra CG-speed measurement (per-sample T_s), so its weight does
+        # not depend on the log's sample rate.
+        p_ref = self.config.reference
+        dt = np.diff(u.t, prepend=self._t_gnss)
+        self._t_gnss = float(u.t[-1])
+        inflate = np.maximum(p_ref.tau_wheel / np.where(dt > 0, dt, np.inf), 1.0)
+        var = np.where(gnss, p_ref.sigma_gnss**2 / inflate, np.nan)[:, None]
         mu_x_c = np.ascontiguousarray(mu_x)
         if method == "kinematic":
             v = self.kinematic.advance(u.t, u.omega, res["f_x"], res["f_y"], u.yaw_rate)
@@ -337,6 +348,7 @@ class Pipeline:
         vxt, vyt = kin.to_tire_frame(vx_i, vy_i, u.delta)
         res.update({"v": v, "sigma_v": sig, "bias": bias, "vx_i": vx_i, "vy_i": vy_i,
                     "cornering_stiffness": c_y, "radius_scale": scale,
+                    "gnss_latency": latency,
                     "vxt": vxt, "vyt": vyt,
                     "slip_ratio": kin.slip_ratio(u.omega, vxt, self.vehicle.body.wheel_radius),
                     "slip_angle": kin.slip_angle(vxt, vyt)})
@@ -359,7 +371,8 @@ class Pipeline:
         if not np.all(np.isnan(res["bias"])):
             groups.append((["bias_ax"], res["bias"]))
         groups.append((["cornering_stiffness"], res["cornering_stiffness"]))
-        groups.append((["radius_scale"], res["radius_scale"]))
+        groups.append((["radius_scale", "gnss_latency"],
+                       np.column_stack((res["radius_scale"], res["gnss_latency"]))))
         if "confidence" in res:
             groups.append((names("confidence"), res["confidence"]))
         return groups
@@ -433,4 +446,5 @@ class Pipeline:
                 "pitch_source": "rate" if rates[1] else "quasi_static"})
         row = dict(zip(self._step_names, out.tolist(), strict=True))
         row["radius_scale"] = 1.0  # no gnss_speed on this path
+        row["gnss_latency"] = 0.0
         return row

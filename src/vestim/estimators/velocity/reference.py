@@ -79,6 +79,9 @@ class ReferenceParams:
             ω̇ over the window noisy: σ ≈ 2 m/s² for the simulator's sensors at 200 Hz).
         k_lat: slip-evidence gain on the wheel's lateral sliding speed |v_yt| (dimensionless:
             m/s of σ per m/s): a tire sliding sideways is in combined slip and rolls slower.
+            0.5: with 1, a v_y estimate that is itself off (a car whose stiffness the
+            file does not know) made free-rolling wheels untrusted and coupled the v_y error
+            into v_x (crossplant x02 0.29 → 0.14 %, x06 0.57 → 0.47 %).
         q_gyro_bias: random-walk intensity of the yaw-gyro bias b_r, (rad/s)²/s.
         gyro_bias_sd: prior one-sigma of b_r, rad/s (automotive MEMS: ~0.002 per run).
         torque_dead: |torque| (N m) below which a wheel counts as neither driven nor braked
@@ -93,9 +96,10 @@ class ReferenceParams:
             of unknown friction), blend 1/(1 + (α/α_lin)⁴).
         k_rel_sat, tau_vy_sat, side_vy_sat, gate_vy_sat: k_rel, tau_vy, side_vy, gate_vy of a
             saturating axle.
-        sigma_gnss: one-sigma of a ``gnss_speed`` fix as a CG-speed measurement, m/s (before
-            the τ_wheel/T_s inflation that every extra CG-speed measurement gets: receiver
-            latency and multipath make its error persist).
+        sigma_gnss: one-sigma of a ``gnss_speed`` fix (brought forward by its latency) as a
+            white CG-speed measurement, m/s (the pipeline undoes the τ_wheel/T_s inflation of
+            extra measurements for it). The RAV4 log's fixes scatter by 0.077 m/s against
+            the pose reference once the latency is removed.
         sigma_corner_slip: one-sigma (m/s) of the fused pipeline's corner-observer CG speed,
             which enters only while ≥ 3 corners are in high slip (before the τ/T_s
             inflation). 3 m/s: with 1 m/s the corner KF's tire-model bias in moderate
@@ -123,7 +127,7 @@ class ReferenceParams:
     side_vy: float = 1.0
     tau_wheel: float = 1.0
     acc_dead: float = 3.0
-    k_lat: float = 1.0
+    k_lat: float = 0.5
     q_gyro_bias: float = 1.0e-9
     gyro_bias_sd: float = 0.003
     torque_dead: float = 20.0
@@ -135,7 +139,7 @@ class ReferenceParams:
     gate_vy_sat: float = 3.0
     window: int = 20
     sigma_corner_slip: float = 3.0
-    sigma_gnss: float = 0.05
+    sigma_gnss: float = 0.1
 
 
 @dataclass(frozen=True)
@@ -246,63 +250,95 @@ def axle_slip_angles(t: np.ndarray, omega: np.ndarray, yaw_rate: np.ndarray,
 
 @dataclass(frozen=True)
 class RadiusParams:
-    """Online wheel-radius scale from a sparse ``gnss_speed`` (:func:`radius_scale`).
+    """Online wheel-radius scale and GNSS latency from a sparse ``gnss_speed``
+    (:func:`gnss_calibration`).
 
     Attributes:
-        prior_fixes: weight of the prior scale 1 (the file's wheel_radius), in fixes at
-            ``prior_speed``.
+        prior_fixes: weight of the prior scale 1 (the file's wheel_radius) and latency 0, in
+            fixes at ``prior_speed`` and ``prior_accel``.
         prior_speed: speed of those prior fixes, m/s.
+        prior_accel: acceleration of those prior fixes, m/s² (sets the latency prior's weight).
         tau: forgetting time, s (tire wear, pressure and load change slowly).
         v_min: speed below which a fix is not used, m/s (GNSS speed noise dominates).
-        a_max: |a_x| above which a fix is not used, m/s² (wheel slip, and the receiver's
-            latency against the wheel speeds, which reads as a scale error).
+        a_max: |dv_w/dt| above which a fix is not used, m/s² (wheel slip).
+        tau_acc: time constant of the low-pass on the wheel-speed derivative, s.
         s_min, s_max: physical bounds of the scale (a radius off by more than 8 % is a wrong
             vehicle file, not tire growth).
+        latency_max: bound of the receiver latency, s.
     """
 
     prior_fixes: float = 20.0
     prior_speed: float = 10.0
+    prior_accel: float = 1.0
     tau: float = 600.0
     v_min: float = 3.0
-    a_max: float = 1.5
+    a_max: float = 3.0
+    tau_acc: float = 0.05
     s_min: float = 0.92
     s_max: float = 1.08
+    latency_max: float = 0.5
 
 
 def radius_params(p: RadiusParams, radius: float) -> np.ndarray:
-    """Parameter vector of :func:`radius_scale`."""
+    """Parameter vector of :func:`gnss_calibration`."""
     return np.array([radius, p.prior_fixes * p.prior_speed**2, p.tau, p.v_min, p.a_max,
-                     p.s_min, p.s_max])
+                     p.s_min, p.s_max, p.prior_fixes * p.prior_accel**2, p.tau_acc,
+                     p.latency_max])
 
 
 @njit(**_JIT)
-def radius_scale(t: np.ndarray, omega: np.ndarray, gnss: np.ndarray, ax: np.ndarray,
-                 prm: np.ndarray, state: np.ndarray, out: np.ndarray) -> None:
-    """Scale s of the effective rolling radius (R_eff = s R) from the GNSS speed, per sample.
+def gnss_calibration(t: np.ndarray, omega: np.ndarray, gnss: np.ndarray, prm: np.ndarray,
+                     state: np.ndarray, out_scale: np.ndarray, out_latency: np.ndarray,
+                     out_speed: np.ndarray) -> None:
+    """Effective-radius scale s (R_eff = s R) and receiver latency L from the GNSS speed.
 
-    Least squares of the fixes g_k ≈ s v_w,k (v_w: the mean R ω of the two middle wheels,
-    robust to one slipping wheel) with exponential forgetting and a prior s = 1 of weight
-    W₀ (in (m/s)²): s = (Σλ g v_w + W₀)/(Σλ v_w² + W₀), clipped to [s_min, s_max]. Fixes at
-    low speed or high |a_x| are left out. Without fixes s stays 1 (the file's radius).
-    ``prm`` from :func:`radius_params`: [R, W₀, τ, v_min, a_max, s_min, s_max];
-    ``state`` = [Σλ g v_w, Σλ v_w², t_prev, started].
+    A fix g_k is the speed L seconds ago: g_k ≈ s (v_w − L v̇_w) at its sample (v_w: the
+    mean R ω of the two middle wheels, robust to one slipping wheel; v̇_w its derivative,
+    low-passed over τ_acc). Least squares in (s, c = s L) with exponential forgetting and
+    the priors s = 1, c = 0 (weights W_s in (m/s)², W_c in (m/s²)²), L clipped to
+    [0, L_max], s to [s_min, s_max]. Without fixes s = 1 and L = 0. ``out_speed`` is the fix
+    brought to its own sample, g + L v̇_w (NaN between fixes): the CG-speed measurement.
+    The RAV4 log: s 1.0088 (its CAN wheel speeds read 0.86 % low), L 0.16 s.
+    ``prm`` from :func:`radius_params`; ``state`` = [Σvv, Σva, Σaa, Σgv, Σga, t_prev,
+    started, v_w prev, v̇_w].
     """
-    radius, w0, tau, v_min, a_max, s_min, s_max = (prm[0], prm[1], prm[2], prm[3], prm[4],
-                                                   prm[5], prm[6])
+    radius, w_s, tau, v_min, a_max, s_min, s_max, w_c, tau_a, l_max = (
+        prm[0], prm[1], prm[2], prm[3], prm[4], prm[5], prm[6], prm[7], prm[8], prm[9])
     for k in range(t.shape[0]):
-        if state[3] == 1.0:
-            lam = np.exp(-(t[k] - state[2]) / tau)
-            state[0] *= lam
-            state[1] *= lam
-        state[2] = t[k]
-        state[3] = 1.0
+        v_w = middle_wheel_speed(omega, k, radius)
+        if state[6] == 1.0:
+            dt = t[k] - state[5]
+            lam = np.exp(-dt / tau)
+            for j in range(5):
+                state[j] *= lam
+            if dt > 0:
+                g_lp = min(dt / tau_a, 1.0)
+                state[8] += g_lp * ((v_w - state[7]) / dt - state[8])
+        state[5] = t[k]
+        state[6] = 1.0
+        state[7] = v_w
+        a_w = state[8]
         g = gnss[k]
-        if not np.isnan(g) and abs(ax[k]) < a_max:
-            v_w = middle_wheel_speed(omega, k, radius)
-            if v_w > v_min:
-                state[0] += g * v_w
-                state[1] += v_w * v_w
-        out[k] = min(max((state[0] + w0) / (state[1] + w0), s_min), s_max)
+        if not np.isnan(g) and v_w > v_min and abs(a_w) < a_max:
+            state[0] += v_w * v_w
+            state[1] += v_w * a_w
+            state[2] += a_w * a_w
+            state[3] += g * v_w
+            state[4] += g * a_w
+        # Normal equations for (s, c) with regressors (v_w, −v̇_w) and the priors.
+        m11 = state[0] + w_s
+        m12 = -state[1]
+        m22 = state[2] + w_c
+        b1 = state[3] + w_s
+        b2 = -state[4]
+        det = m11 * m22 - m12 * m12
+        sc = (b1 * m22 - m12 * b2) / det
+        c = (m11 * b2 - m12 * b1) / det
+        sc = min(max(sc, s_min), s_max)
+        lat = min(max(c / sc, 0.0), l_max)
+        out_scale[k] = sc
+        out_latency[k] = lat
+        out_speed[k] = g + lat * sc * a_w if not np.isnan(g) else np.nan
 
 
 @njit(**_JIT)
