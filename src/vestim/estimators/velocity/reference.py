@@ -96,6 +96,9 @@ class ReferenceParams:
             of unknown friction), blend 1/(1 + (α/α_lin)⁴).
         k_rel_sat, tau_vy_sat, side_vy_sat, gate_vy_sat: k_rel, tau_vy, side_vy, gate_vy of a
             saturating axle.
+        pair_gap: gap between the front and rear linear-tire v_y (m/s) at which both are
+            half way from a value to a bound (blend 1/(1 + (gap/pair_gap)²), times the
+            slip-angle blend of ``alpha_lin``).
         sigma_gnss: one-sigma of a ``gnss_speed`` fix (brought forward by its latency) as a
             white CG-speed measurement, m/s (the pipeline undoes the τ_wheel/T_s inflation of
             extra measurements for it). The RAV4 log's fixes scatter by 0.077 m/s against
@@ -137,6 +140,7 @@ class ReferenceParams:
     tau_vy_sat: float = 1.0
     side_vy_sat: float = 0.05
     gate_vy_sat: float = 3.0
+    pair_gap: float = 0.2
     window: int = 20
     sigma_corner_slip: float = 3.0
     sigma_gnss: float = 0.1
@@ -407,7 +411,7 @@ def reference_kernel(t: np.ndarray, omega: np.ndarray, torque: np.ndarray, mu_x:
     ``prm`` = [q_vx, q_vy, q_bias, r_wheel, k_mu, k_acc, slip_sign, gate, r_vy, k_vy,
     bias_max, q_bias_y, bias_y_max, k_rel, gate_vy, tau_vy, s_side, tau_wheel, acc_dead, k_lat,
     q_gyro_bias, gyro_bias_sd, torque_dead, k_comb, alpha_lin, k_rel_sat, tau_vy_sat,
-    side_vy_sat, gate_vy_sat].
+    side_vy_sat, gate_vy_sat, pair_gap].
     ``axle_slip`` (n, 2): front and rear axle slip angles from the lateral forces and the
     nominal cornering stiffness, rad (spec sign: atan(v_yt/v_xt)); NaN where unknown.
     ``hist`` (m, 5): last m samples of (t, ω_fl…ω_rr) for ω̇; ``state`` = [t_prev, started,
@@ -421,7 +425,7 @@ def reference_kernel(t: np.ndarray, omega: np.ndarray, torque: np.ndarray, mu_x:
         prm[0], prm[1], prm[2], prm[3], prm[4], prm[5], prm[6], prm[7], prm[8], prm[9], prm[10])
     q_by, by_max, k_rel, gate_vy, tau_vy, s_side, tau_w, acc_dead, k_lat = prm[11:20]
     q_br, gyro_sd, torque_dead, k_comb = prm[20], prm[21], prm[22], prm[23]
-    alpha_lin, k_rel_sat, tau_sat, side_sat, gate_sat = prm[24:29]
+    alpha_lin, k_rel_sat, tau_sat, side_sat, gate_sat, pair_gap = prm[24:30]
     m = hist.shape[0]
     nx = x.shape[0]
     wheel_v = np.empty(4)
@@ -542,6 +546,14 @@ def reference_kernel(t: np.ndarray, omega: np.ndarray, torque: np.ndarray, mu_x:
         # integration (its drift held by b_y, learnt while the tires were linear) carries on.
         beta_acc = abs(f_y[k] - x[BY] - r_now * x[VX])
         d_f = 0.5 * (delta[k, 0] + delta[k, 1])
+        # Both axles on the linear tire with the identified stiffness give the same v_y
+        # (their difference is the kinematic L r/v_x − δ): a gap between them means one is
+        # saturating or sliding, whatever the friction; both are then bounds (h_pair → 0).
+        # On low μ this is the only sign: the linear slip angle stays small in a slide.
+        h_pair = 1.0
+        if not (np.isnan(axle_slip[k, 0]) or np.isnan(axle_slip[k, 1])):
+            gap = (x[VX] * (axle_slip[k, 0] + d_f - axle_slip[k, 1]) - (lf + lr) * r_now) / pair_gap
+            h_pair = 1.0 / (1.0 + gap * gap)
         for a in range(2):
             alpha = axle_slip[k, a]
             if np.isnan(alpha):
@@ -552,7 +564,7 @@ def reference_kernel(t: np.ndarray, omega: np.ndarray, torque: np.ndarray, mu_x:
             # only a bound: σ k_rel_sat |v_x α|, a second of correlation, one-sided, 3σ gate.
             # h blends the two by the slip angle itself.
             q = (alpha / alpha_lin) ** 2
-            h = 1.0 / (1.0 + q * q)
+            h = h_pair / (1.0 + q * q)
             sig = (k_rel_sat + h * (k_rel - k_rel_sat)) * abs(x[VX] * alpha) + k_vy * beta_acc
             tau_a = tau_sat + h * (tau_vy - tau_sat)
             inflate = max(tau_a / dt, 1.0) if dt > 0 else 1.0
@@ -610,7 +622,7 @@ class ReferenceFilter:
                               p.k_rel, p.gate_vy, p.tau_vy, p.side_vy, p.tau_wheel,
                               p.acc_dead, p.k_lat, p.q_gyro_bias, p.gyro_bias_sd,
                               p.torque_dead, p.k_comb, p.alpha_lin, p.k_rel_sat,
-                              p.tau_vy_sat, p.side_vy_sat, p.gate_vy_sat])
+                              p.tau_vy_sat, p.side_vy_sat, p.gate_vy_sat, p.pair_gap])
         self.reset()
 
     def reset(self) -> None:
