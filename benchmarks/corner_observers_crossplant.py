@@ -27,6 +27,7 @@ from typing import Any
 
 import pandas as pd
 
+from _docs import write_section
 from vestim.design.tire_fit import TireFitReport, fit_lugre_from_log
 from vestim.io import load_vehicle
 from vestim.io.vehicle import Vehicle
@@ -34,7 +35,6 @@ from vestim.pipeline import Pipeline, PipelineConfig
 
 ROOT = Path(__file__).resolve().parents[1]
 XP = ROOT.parent / "shared" / "crossplant"
-BEGIN, END = "<!-- corner-observers:begin -->", "<!-- corner-observers:end -->"
 CONFIGS = ("kf", "ukf", "lpv", "reference", "fused")
 RULE = 0.1  # points of CG v_x NRMS
 
@@ -142,16 +142,7 @@ def main() -> None:
     print(text)
     if args.no_write:
         return
-    path = ROOT / "docs" / "results.md"
-    doc = path.read_text(encoding="utf-8")
-    if BEGIN in doc and END in doc:
-        pre, rest = doc.split(BEGIN, 1)
-        post = rest.split(END, 1)[1]
-    else:
-        pre, post = doc.rstrip("\n") + "\n\n", "\n"
-    tmp = path.with_suffix(".md.tmp")
-    tmp.write_text(f"{pre}{BEGIN}\n{text}\n{END}{post}", encoding="utf-8")
-    tmp.replace(path)
+    write_section("corner-observers", text, after="<!-- sensitivity:end -->")
 
 
 if __name__ == "__main__":

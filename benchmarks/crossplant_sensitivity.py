@@ -24,13 +24,13 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
+from _docs import write_section
 from vestim.io import load_vehicle
 from vestim.io.vehicle import Vehicle
 from vestim.pipeline import Pipeline
 
 ROOT = Path(__file__).resolve().parents[1]
 XP = ROOT.parent / "shared" / "crossplant"
-BEGIN, END = "<!-- sensitivity:begin -->", "<!-- sensitivity:end -->"
 CHANNELS = ("vx", "vy", "sa", "fz", "fx", "fy", "mu")
 
 
@@ -122,18 +122,7 @@ def main() -> None:
     print(text)
     if args.no_write:
         return
-    path = ROOT / "docs" / "results.md"
-    doc = path.read_text(encoding="utf-8")
-    if BEGIN in doc:
-        pre, rest = doc.split(BEGIN, 1)
-        post = rest.split(END, 1)[1]
-    else:
-        marker = "<!-- crossplant:end -->"
-        pre, _, post = doc.partition(marker)
-        pre, post = pre + marker + "\n\n", "\n" + post
-    tmp_path = path.with_suffix(".md.tmp")
-    tmp_path.write_text(f"{pre}{BEGIN}\n{text}\n{END}{post}", encoding="utf-8")
-    tmp_path.replace(path)
+    write_section("sensitivity", text, after="<!-- crossplant:end -->")
 
 
 if __name__ == "__main__":

@@ -23,6 +23,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
+from _docs import write_section
 from vestim.io import load_vehicle
 from vestim.pipeline import Pipeline, PipelineConfig
 
@@ -30,7 +31,6 @@ ROOT = Path(__file__).resolve().parents[1]
 SHARED = ROOT.parent / "shared"
 XP = SHARED / "crossplant"
 RAV4 = SHARED / "real" / "comma2k19_rav4"
-BEGIN, END = "<!-- crossplant:begin -->", "<!-- crossplant:end -->"
 
 
 def _measured(log: pd.DataFrame) -> pd.DataFrame:
@@ -155,17 +155,7 @@ def main() -> None:
     print(text)
     if args.no_write:
         return
-    path = ROOT / "docs" / "results.md"
-    doc = path.read_text(encoding="utf-8")
-    if BEGIN in doc:
-        pre, rest = doc.split(BEGIN, 1)
-        post = rest.split(END, 1)[1]
-    else:
-        title, _, after = doc.partition("\n")
-        pre, post = title + "\n\n", "\n" + after
-    tmp = path.with_suffix(".md.tmp")
-    tmp.write_text(f"{pre}{BEGIN}\n{text}\n{END}{post}", encoding="utf-8")
-    tmp.replace(path)
+    write_section("crossplant", text)
 
 
 if __name__ == "__main__":
