@@ -101,11 +101,15 @@ def test_expm2_equals_scipy(entries: list[float], log_scale: float, h: float) ->
 
     Covers real, complex and (nearly) repeated eigenvalues and ‖M‖h from 1e-7 to 20.
     Tolerance 1e-10: Φ = M⁻¹(e^{Mh} − I) loses about cond(M)·ε of relative precision,
-    so matrices with cond(M) > 1e5 (ε·cond > 2e-11) are excluded — the earlier filter on
-    det M alone let cond 7.5e5 through (M = diag(1.2e-7, −0.09), error 1.2e-10). The LPV
-    observers have det M = L2(σ0 + σ2κR|ω|) > 0, far from singular.
+    so nearly singular M (relative det ≤ 1e-6, including a det that underflows to 0, for
+    which the kernel documents Φ = NaN) and matrices with cond(M) > 1e5 (ε·cond > 2e-11;
+    the det filter alone let cond 7.5e5 through: M = diag(1.2e-7, −0.09), error 1.2e-10)
+    are outside the domain. The LPV observers have det M = L2(σ0 + σ2κR|ω|) > 0, far from
+    singular.
     """
     m = np.array(entries).reshape(2, 2) * 10.0**log_scale
+    if abs(np.linalg.det(m)) <= 1e-6 * np.max(np.abs(m)) ** 2:
+        return
     if not np.isfinite(np.linalg.cond(m)) or np.linalg.cond(m) > 1e5:
         return
     e, phi = expm2(m, h)
