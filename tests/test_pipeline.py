@@ -185,7 +185,7 @@ def test_corner_kf_integrates_bias_corrected_acceleration():
 
 @pytest.mark.parametrize("velocity", ["fused", "reference"])
 def test_online_step_is_compiled_and_exact(velocity):
-    """The default configurations step through one compiled call (vestim.online) and give
+    """The default configurations step through one compiled call (vestim.pipeline.online) and give
     the batch result bit for bit, also through the fused filter's switch to the corner
     measurement (AWD ice launch: every wheel spins)."""
     run = strip(simulate(get_maneuver("launch_ice", tire="magic"), SUV, seed=1)).iloc[:1600]

@@ -16,14 +16,6 @@ is verified by eigenvalues on a fine grid in original units.
 
 from vestim.design.analysis import affine_quadratic_stability, check_lyapunov, hinf_performance
 from vestim.design.frequency import frequency_response, frozen_hinf_norm, plot_frequency_response
-from vestim.design.gains import (
-    GainSchedule,
-    GainsFileError,
-    ObserverGains,
-    StoredCertificate,
-    load_gains,
-    save_gains,
-)
 from vestim.design.lmi import LMICheck, LMIResult, LPVSystem, ParameterBox
 from vestim.design.observability import (
     ObservabilityReport,
@@ -43,6 +35,14 @@ from vestim.design.observer import (
     lugre_observer_plant,
 )
 from vestim.design.synthesis import ObserverPlant, SynthesisResult, synthesize_observer
+from vestim.estimators.velocity.lpv_gains import (
+    GainSchedule,
+    GainsFileError,
+    ObserverGains,
+    StoredCertificate,
+    load_gains,
+    save_gains,
+)
 
 __all__ = [
     "Certificate",

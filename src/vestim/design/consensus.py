@@ -20,10 +20,12 @@ import math
 import warnings
 from dataclasses import dataclass
 
-import cvxpy as cp
 import numpy as np
 
+from vestim.errors import optional_import
 from vestim.estimators.fusion.opinion import N_CORNERS, SHIFT, laplacian_bar
+
+cp = optional_import("cvxpy", "design", "the opinion-fusion reference solver")
 
 
 @dataclass(frozen=True)

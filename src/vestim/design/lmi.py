@@ -44,6 +44,8 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy.linalg import matrix_balance
 
+from vestim.errors import optional_import
+
 FArray = NDArray[np.float64]
 Builder = Callable[[dict[str, FArray], "Context"], FArray]
 Method = Literal["vertex", "grid"]
@@ -349,12 +351,11 @@ class LMIProblem:
     """
 
     def __init__(self, layout: Layout, families: list[Family], objective: FArray) -> None:
-        import cvxpy as cp
-
+        cp = optional_import("cvxpy", "design", "the LMI tools (vestim design, vestim analyze)")
         self._cp = cp
         self.layout = layout
         self.x = cp.Variable(layout.size)
-        self.params: dict[str, cp.Parameter] = {}
+        self.params: dict[str, Any] = {}
         cons = []
         for fam in families:
             expr = self._expr(fam.builder, fam.ctx)

@@ -3,7 +3,7 @@
 - :func:`design_lpv`: wheel-speed-scheduled gains L1(|ω|), L2(|ω|) for the
   longitudinal (001 eq. (24)) and lateral (001 eq. (38)) observers from the LPV
   synthesis LMIs (001 eq. (30)–(32), 004 eq. (26)–(35)); returns a
-  :class:`~vestim.design.gains.GainSchedule` (write it with ``save_gains``).
+  :class:`~vestim.estimators.velocity.lpv_gains.GainSchedule` (write it with ``save_gains``).
 - :func:`check_design`: certify given gains (a schedule, a gains file, or by
   default the constant gains of 001 Sec. IV) for a vehicle: affine quadratic
   stability (001 eq. (28)) and the H∞ performance γ (004 eq. (24)–(25)), each
@@ -31,13 +31,6 @@ from pathlib import Path
 import numpy as np
 
 from vestim.design.analysis import affine_quadratic_stability, check_lyapunov, hinf_performance
-from vestim.design.gains import (
-    DIRECTIONS,
-    GainSchedule,
-    ObserverGains,
-    StoredCertificate,
-    load_gains,
-)
 from vestim.design.lmi import LMIResult, LPVSystem, ParameterBox, verification_grid
 from vestim.design.papers import REFERENCE_GAINS
 from vestim.design.synthesis import (
@@ -45,6 +38,13 @@ from vestim.design.synthesis import (
     ObserverPlant,
     SynthesisResult,
     synthesize_observer,
+)
+from vestim.estimators.velocity.lpv_gains import (
+    DIRECTIONS,
+    GainSchedule,
+    ObserverGains,
+    StoredCertificate,
+    load_gains,
 )
 from vestim.io.vehicle import Vehicle, load_vehicle
 from vestim.models.lpv import (

@@ -11,7 +11,7 @@ m(v̇_x − r v_y) = Σ (F_x,i cos δ_i − F_y,i sin δ_i) − D − m g sin γ
 F_y,i the road forces on the tires in each tire's frame (rolling resistance
 included: a free-rolling tire reads −f F_z) and D the aerodynamic drag. The
 accelerometer measures *specific force*, f_x = (v̇_x − r v_y) + g sin γ once
-rotated into the road plane (:func:`vestim.estimators.force.normal.road_specific_force`),
+rotated into the road plane (:func:`vestim.models.kinematics.road_specific_force`),
 so the grade term cancels and
 
     Σ F_x,i = m f_x + D + C,    D = ½ ρ C_dA v_x |v_x|,    C = Σ_front F_y,i tan δ_i.   (1)

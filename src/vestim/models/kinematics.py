@@ -19,6 +19,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
+from vestim.constants import G
 from vestim.io.vehicle import Vehicle
 
 
@@ -31,7 +32,7 @@ def corner_positions(vehicle: Vehicle) -> tuple[np.ndarray, np.ndarray]:
 
 
 @njit(cache=True, error_model="numpy")
-def _transport(a: np.ndarray, b: np.ndarray, c: np.ndarray, w: np.ndarray, s: np.ndarray,
+def transport_kernel(a: np.ndarray, b: np.ndarray, c: np.ndarray, w: np.ndarray, s: np.ndarray,
                sign: float) -> tuple[np.ndarray, np.ndarray]:
     """out_x[k, i] = a[k] − sign·c[k] y_i, out_y[k, i] = b[k] + sign·c[k] x_i for (n,) a, b, c
     and (4,) positions (w = x_i, s = y_i); one pass, no temporaries."""
@@ -52,7 +53,7 @@ def _flat(x: np.ndarray) -> np.ndarray:
 def cg_to_corners(vx: np.ndarray, vy: np.ndarray, yaw_rate: np.ndarray, xw: np.ndarray,
                   yw: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Wheel-centre velocities (n, 4) in the body frame from the CG velocity (n,) and yaw rate."""
-    return _transport(_flat(vx), _flat(vy), _flat(yaw_rate), _flat(xw), _flat(yw), 1.0)
+    return transport_kernel(_flat(vx), _flat(vy), _flat(yaw_rate), _flat(xw), _flat(yw), 1.0)
 
 
 def corners_to_cg(vx_i: np.ndarray, vy_i: np.ndarray, yaw_rate: np.ndarray, xw: np.ndarray,
@@ -62,7 +63,7 @@ def corners_to_cg(vx_i: np.ndarray, vy_i: np.ndarray, yaw_rate: np.ndarray, xw: 
 
 
 @njit(cache=True, error_model="numpy")
-def _corner_acc(ax: np.ndarray, ay: np.ndarray, r: np.ndarray, r_dot: np.ndarray,
+def corner_acc_kernel(ax: np.ndarray, ay: np.ndarray, r: np.ndarray, r_dot: np.ndarray,
                 xw: np.ndarray, yw: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     n = ax.shape[0]
     out_x = np.empty((n, 4))
@@ -79,12 +80,12 @@ def corner_accelerations(ax: np.ndarray, ay: np.ndarray, yaw_rate: np.ndarray,
                          yaw_acc: np.ndarray, xw: np.ndarray,
                          yw: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Acceleration (n, 4) of each wheel centre in the body frame, m/s², from the CG's (n,)."""
-    return _corner_acc(_flat(ax), _flat(ay), _flat(yaw_rate), _flat(yaw_acc), _flat(xw),
+    return corner_acc_kernel(_flat(ax), _flat(ay), _flat(yaw_rate), _flat(yaw_acc), _flat(xw),
                        _flat(yw))
 
 
 @njit(cache=True, error_model="numpy")
-def _rotate(vx: np.ndarray, vy: np.ndarray, delta: np.ndarray, sign: float,
+def rotate_kernel(vx: np.ndarray, vy: np.ndarray, delta: np.ndarray, sign: float,
             out_x: np.ndarray, out_y: np.ndarray) -> None:
     """Rotate (v_x, v_y) by −sign·δ elementwise (flat arrays), one pass, no temporaries."""
     for k in range(vx.shape[0]):
@@ -99,7 +100,7 @@ def _rotated(vx: np.ndarray, vy: np.ndarray, delta: np.ndarray,
     vx, vy, delta = np.broadcast_arrays(*(np.asarray(a, dtype=float) for a in (vx, vy, delta)))
     out_x = np.empty(vx.shape)
     out_y = np.empty(vx.shape)
-    _rotate(np.ascontiguousarray(vx).reshape(-1), np.ascontiguousarray(vy).reshape(-1),
+    rotate_kernel(np.ascontiguousarray(vx).reshape(-1), np.ascontiguousarray(vy).reshape(-1),
             np.ascontiguousarray(delta).reshape(-1), sign, out_x.reshape(-1),
             out_y.reshape(-1))
     return out_x, out_y
@@ -119,7 +120,7 @@ def to_body_frame(vxt: np.ndarray, vyt: np.ndarray,
 
 
 @njit(cache=True, error_model="numpy")
-def _slip_ratio(omega: np.ndarray, vxt: np.ndarray, radius: float, eps: float,
+def slip_ratio_kernel(omega: np.ndarray, vxt: np.ndarray, radius: float, eps: float,
                 out: np.ndarray) -> None:
     for k in range(omega.shape[0]):
         rw = radius * omega[k]
@@ -128,7 +129,7 @@ def _slip_ratio(omega: np.ndarray, vxt: np.ndarray, radius: float, eps: float,
 
 
 @njit(cache=True, error_model="numpy")
-def _slip_angle(vxt: np.ndarray, vyt: np.ndarray, eps: float, out: np.ndarray) -> None:
+def slip_angle_kernel(vxt: np.ndarray, vyt: np.ndarray, eps: float, out: np.ndarray) -> None:
     for k in range(vxt.shape[0]):
         out[k] = np.arctan(vyt[k] / vxt[k]) if abs(vxt[k]) > eps else 0.0
 
@@ -138,7 +139,7 @@ def slip_ratio(omega: np.ndarray, vxt: np.ndarray, radius: float, eps: float = 0
     when reversing); 0 where both speeds are below ``eps`` m/s."""
     omega, vxt = np.broadcast_arrays(np.asarray(omega, dtype=float), np.asarray(vxt, dtype=float))
     out = np.empty(omega.shape)
-    _slip_ratio(_flat(omega), _flat(vxt), float(radius), float(eps), out.reshape(-1))
+    slip_ratio_kernel(_flat(omega), _flat(vxt), float(radius), float(eps), out.reshape(-1))
     return out
 
 
@@ -146,7 +147,7 @@ def slip_angle(vxt: np.ndarray, vyt: np.ndarray, eps: float = 0.5) -> np.ndarray
     """atan(v_yt / v_xt) in the tire frame (spec: negative in a steady left turn); 0 below ``eps`` m/s."""
     vxt, vyt = np.broadcast_arrays(np.asarray(vxt, dtype=float), np.asarray(vyt, dtype=float))
     out = np.empty(vxt.shape)
-    _slip_angle(_flat(vxt), _flat(vyt), float(eps), out.reshape(-1))
+    slip_angle_kernel(_flat(vxt), _flat(vyt), float(eps), out.reshape(-1))
     return out
 
 
@@ -158,3 +159,36 @@ def middle_wheel_speed(omega: np.ndarray, k: int, radius: float) -> float:
     hi = max(max(a, b), max(c, d))
     lo = min(min(a, b), min(c, d))
     return 0.5 * radius * (a + b + c + d - hi - lo)
+
+
+@njit(cache=True, error_model="numpy")
+def road_specific_force(ax: np.ndarray, ay: np.ndarray, az: np.ndarray, roll: np.ndarray,
+                        pitch: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """IMU specific force rotated from the body to the road plane: (f_x, f_y, f_z) in m/s².
+
+    Inverse of the body rotation (pitch θ, then roll φ): 001 eq. (14) for x and z;
+    for y the spec's roll sign (φ > 0 lifts the left side) gives f_y = a_y cos φ − a_z sin φ.
+    """
+    cp, sp = np.cos(roll), np.sin(roll)
+    ct, st = np.cos(pitch), np.sin(pitch)
+    f_y = cp * ay - sp * az
+    tmp_z = sp * ay + cp * az  # body z-axis component after removing roll
+    f_x = ct * ax + st * tmp_z
+    f_z = -st * ax + ct * tmp_z
+    return f_x, f_y, f_z
+
+
+def level_road_az(ax: np.ndarray, ay: np.ndarray, roll: np.ndarray,
+                  pitch: np.ndarray) -> np.ndarray:
+    """Body-frame a_z (m/s²) for a log without ``az``: the value whose road-normal component is g.
+
+    Solves f_z = g in :func:`road_specific_force` for a_z given a_x, a_y and the body
+    angles: a_z = ((g + a_x sin θ)/cos θ − a_y sin φ)/cos φ. It assumes a level road
+    without heave; on a grade or bank γ the true f_z is g cos γ (0.1 % less at 5 %),
+    and road undulations and heave, which a measured a_z carries into the normal
+    loads, are lost. Better than a_z = g, which would put g(1 − cos θ cos φ) of
+    error into f_x and f_z at the body angles of hard braking or cornering.
+    """
+    cp, sp = np.cos(roll), np.sin(roll)
+    ct, st = np.cos(pitch), np.sin(pitch)
+    return ((G + st * ax) / ct - sp * ay) / cp

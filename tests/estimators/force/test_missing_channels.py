@@ -203,12 +203,12 @@ def test_sources_report_mixed_streams(runs):
 
 
 def test_level_road_az_gives_g_normal_to_the_road():
-    """normal.level_road_az inverts road_specific_force for f_z = g at any body angle."""
+    """kinematics.level_road_az inverts road_specific_force for f_z = g at any body angle."""
     from vestim.constants import G
-    from vestim.estimators.force import normal as nrm
+    from vestim.models import kinematics as kin
     rng = np.random.default_rng(0)
     ax, ay = rng.normal(0, 4, 50), rng.normal(0, 4, 50)
     roll, pitch = rng.normal(0, 0.05, 50), rng.normal(0, 0.05, 50)
-    az = nrm.level_road_az(ax, ay, roll, pitch)
-    _, _, f_z = nrm.road_specific_force(ax, ay, az, roll, pitch)
+    az = kin.level_road_az(ax, ay, roll, pitch)
+    _, _, f_z = kin.road_specific_force(ax, ay, az, roll, pitch)
     np.testing.assert_allclose(f_z, G, rtol=1e-12)

@@ -23,7 +23,7 @@ Missing channels (``shared/spec/log-format.md``; the gap of 001 Sec. VI):
   transfer uses the quasi-static elastic moments (:func:`.normal.normal_loads`):
   the suspension's lag and overshoot and the damper moments are lost.
 * no ``az``: the road-normal specific force is taken as g (level road, no heave;
-  :func:`.normal.level_road_az`): road undulations and heave are lost, and a
+  :func:`vestim.models.kinematics.level_road_az`): road undulations and heave are lost, and a
   grade or bank γ reduces the true value by the factor cos γ (0.1 % at 5 %).
 """
 
@@ -45,6 +45,7 @@ from vestim.filters.ukf import ukf_weights
 from vestim.io.log import road_wheel_angles
 from vestim.io.vehicle import Vehicle
 from vestim.models import chassis
+from vestim.models.kinematics import level_road_az, road_specific_force
 
 TORQUES: tuple[str, ...] = tuple(f"torque_{c}" for c in CORNERS)
 REQUIRED = ("t", *[f"omega_{c}" for c in CORNERS], "ax", "ay", "yaw_rate")
@@ -358,8 +359,8 @@ class ForceEstimator:
         roll, pitch, roll_acc, pitch_acc = np.empty((4, n))
         nrm.attitude_kernel(u.t, u.ax, u.ay, u.roll_rate, u.pitch_rate, u.yaw_rate, u.omega,
                             self._att_prm, self._att, roll, pitch, roll_acc, pitch_acc)
-        az = u.az if u.az_measured else nrm.level_road_az(u.ax, u.ay, roll, pitch)
-        f_x, f_y, f_z = nrm.road_specific_force(u.ax, u.ay, az, roll, pitch)
+        az = u.az if u.az_measured else level_road_az(u.ax, u.ay, roll, pitch)
+        f_x, f_y, f_z = road_specific_force(u.ax, u.ay, az, roll, pitch)
         fz = nrm.normal_loads(f_x, f_y, f_z, roll, pitch, u.roll_rate, u.pitch_rate, roll_acc,
                               pitch_acc, self.vehicle, cfg.normal)
         if not u.torque_measured:

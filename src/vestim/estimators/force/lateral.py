@@ -11,7 +11,7 @@ Measurements (eq. (9) with per-wheel steering instead of 001's parallel steering
     m f_x + F_drag = Σ_i F_xb,i,    m f_y = Σ_i F_yb,i,    r_m = r,
 with F_b,i the tire forces of corner i rotated by its steering angle, the
 longitudinal forces F_x,i from the longitudinal estimator, and f the road-frame
-specific force (IMU rotated by the body angles, :func:`normal.road_specific_force`).
+specific force (IMU rotated by the body angles, :func:`vestim.models.kinematics.road_specific_force`).
 001 eq. (11) subtracts g sin(θ_v + θ_r) and g sin(φ_v + φ_r); the road-angle
 part does not belong in a force balance — the tires carry the gravity
 component along a grade or bank — so only the body angles are removed here.

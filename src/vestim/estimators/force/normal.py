@@ -12,7 +12,7 @@ is needed). Without roll/pitch rate channels the quasi-static angles are used
 (φ = φ_ss, θ = θ_ss sample by sample): what is lost is the suspension's response
 to the load change — the lag and overshoot of the ~1.5 Hz roll and pitch modes —
 so the angles and the elastic load transfer lead the true ones in transients and
-agree in steady state. Without ``az`` see :func:`level_road_az`.
+agree in steady state. Without ``az`` see :func:`vestim.models.kinematics.level_road_az`.
 
 Normal loads (our derivation; 000 eq. (13)–(14), 001 eq. (14)–(17) compared in
 :func:`normal_loads_paper`): rotate the IMU specific force back to the road
@@ -150,39 +150,6 @@ def attitude_kernel(t: np.ndarray, ax: np.ndarray, ay: np.ndarray, p: np.ndarray
         pitch[k] = state[1]
         roll_acc[k] = state[5]
         pitch_acc[k] = state[7]
-
-
-@njit(**_JIT)
-def road_specific_force(ax: np.ndarray, ay: np.ndarray, az: np.ndarray, roll: np.ndarray,
-                        pitch: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """IMU specific force rotated from the body to the road plane: (f_x, f_y, f_z) in m/s².
-
-    Inverse of the body rotation (pitch θ, then roll φ): 001 eq. (14) for x and z;
-    for y the spec's roll sign (φ > 0 lifts the left side) gives f_y = a_y cos φ − a_z sin φ.
-    """
-    cp, sp = np.cos(roll), np.sin(roll)
-    ct, st = np.cos(pitch), np.sin(pitch)
-    f_y = cp * ay - sp * az
-    tmp_z = sp * ay + cp * az  # body z-axis component after removing roll
-    f_x = ct * ax + st * tmp_z
-    f_z = -st * ax + ct * tmp_z
-    return f_x, f_y, f_z
-
-
-def level_road_az(ax: np.ndarray, ay: np.ndarray, roll: np.ndarray,
-                  pitch: np.ndarray) -> np.ndarray:
-    """Body-frame a_z (m/s²) for a log without ``az``: the value whose road-normal component is g.
-
-    Solves f_z = g in :func:`road_specific_force` for a_z given a_x, a_y and the body
-    angles: a_z = ((g + a_x sin θ)/cos θ − a_y sin φ)/cos φ. It assumes a level road
-    without heave; on a grade or bank γ the true f_z is g cos γ (0.1 % less at 5 %),
-    and road undulations and heave, which a measured a_z carries into the normal
-    loads, are lost. Better than a_z = g, which would put g(1 − cos θ cos φ) of
-    error into f_x and f_z at the body angles of hard braking or cornering.
-    """
-    cp, sp = np.cos(roll), np.sin(roll)
-    ct, st = np.cos(pitch), np.sin(pitch)
-    return ((G + st * ax) / ct - sp * ay) / cp
 
 
 def normal_load_params(vehicle: Vehicle) -> np.ndarray:

@@ -4,7 +4,7 @@ Measured channels only (never ``ref_``). The kinematic acceleration of each
 wheel centre in its tire frame (001 text after eq. (21)):
 
 1. rotate the IMU specific force to the road plane with the force stage's body
-   angles (:func:`vestim.estimators.force.normal.road_specific_force`); grade and
+   angles (:func:`vestim.models.kinematics.road_specific_force`); grade and
    bank are not removed (they stay as a slowly varying bias, as in 000/001);
 2. transport it to the corners, a_x,i = f_x − ṙ y_i − r² x_i, a_y,i = f_y + ṙ x_i − r² y_i
    (:func:`vestim.models.kinematics.corner_accelerations`), ṙ by a backward difference
@@ -20,11 +20,15 @@ import pandas as pd
 
 from vestim.constants import CORNERS, G
 from vestim.errors import LogFormatError
-from vestim.estimators.force.normal import road_specific_force
 from vestim.estimators.velocity.corner import CornerVelocityInput
 from vestim.io.log import road_wheel_angles
 from vestim.io.vehicle import Vehicle
-from vestim.models.kinematics import corner_accelerations, corner_positions, to_tire_frame
+from vestim.models.kinematics import (
+    corner_accelerations,
+    corner_positions,
+    road_specific_force,
+    to_tire_frame,
+)
 
 REQUIRED = ("t", *[f"omega_{c}" for c in CORNERS], "ax", "ay", "yaw_rate")
 FORCE_COLUMNS = (*[f"mu_x_{c}" for c in CORNERS], "roll", "pitch")

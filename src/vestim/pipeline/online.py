@@ -31,16 +31,22 @@ from vestim.estimators.force.normal import (
     attitude_kernel,
     normal_load_params,
     normal_loads_kernel,
-    road_specific_force,
 )
 from vestim.estimators.fusion.axle import adaptive_axle_kernel, fixed_axle_kernel
 from vestim.estimators.velocity.lugre_kf import KFParams, lugre_kf_kernel
 from vestim.estimators.velocity.reference import axle_slip_angles, reference_kernel
 from vestim.models.chassis import torque_less_rolling_resistance
-from vestim.models.kinematics import _corner_acc, _rotate, _slip_angle, _slip_ratio, _transport
+from vestim.models.kinematics import (
+    corner_acc_kernel,
+    road_specific_force,
+    rotate_kernel,
+    slip_angle_kernel,
+    slip_ratio_kernel,
+    transport_kernel,
+)
 
 if TYPE_CHECKING:
-    from vestim.pipeline import Pipeline
+    from vestim.pipeline import Pipeline  # the package this module belongs to
 
 _JIT: dict[str, Any] = {"cache": True, "error_model": "numpy"}
 
@@ -160,18 +166,18 @@ def step_kernel(s: np.ndarray, out: np.ndarray, fprm: np.ndarray, nl_prm: np.nda
         ayc = np.empty(1)
         axc[0] = f_x - bias_ref[0, 0]
         ayc[0] = f_y - bias_ref[0, 1]
-        ax_i, ay_i = _corner_acc(axc, ayc, r1, yaw_acc, xw, yw)
+        ax_i, ay_i = corner_acc_kernel(axc, ayc, r1, yaw_acc, xw, yw)
         a_xt = np.empty((1, 4))
         a_yt = np.empty((1, 4))
-        _rotate(ax_i.reshape(-1), ay_i.reshape(-1), delta.reshape(-1), 1.0, a_xt.reshape(-1),
+        rotate_kernel(ax_i.reshape(-1), ay_i.reshape(-1), delta.reshape(-1), 1.0, a_xt.reshape(-1),
                 a_yt.reshape(-1))
         vg = np.empty(1)
         vg[0] = radius * w_mean
         vyr = v_ref[0, 1:2].copy()
-        vx_i, vy_i = _transport(vg, vyr, r1, xw, yw, 1.0)
+        vx_i, vy_i = transport_kernel(vg, vyr, r1, xw, yw, 1.0)
         vxt_g = np.empty((1, 4))
         vyt_in = np.empty((1, 4))
-        _rotate(vx_i.reshape(-1), vy_i.reshape(-1), delta.reshape(-1), 1.0, vxt_g.reshape(-1),
+        rotate_kernel(vx_i.reshape(-1), vy_i.reshape(-1), delta.reshape(-1), 1.0, vxt_g.reshape(-1),
                 vyt_in.reshape(-1))
         hint = np.zeros((1, 4), dtype=np.bool_)
         k_vxt = np.empty((1, 4))
@@ -187,16 +193,16 @@ def step_kernel(s: np.ndarray, out: np.ndarray, fprm: np.ndarray, nl_prm: np.nda
                         kf_tau, kf_x, kf_P, kf_hold, kf_acc, kf_stats, kf_wbuf, kf_tbuf,
                         kf_ring, k_vxt, k_sig, k_high, k_vr, k_z, k_zd)
         # Fusion (Pipeline._fuse_corners): slip against the reference speed.
-        vxr_i, vyr_i = _transport(v_ref[0, 0:1].copy(), vyr, r1, xw, yw, 1.0)
+        vxr_i, vyr_i = transport_kernel(v_ref[0, 0:1].copy(), vyr, r1, xw, yw, 1.0)
         vxt_r = np.empty((1, 4))
         vyt_r = np.empty((1, 4))
-        _rotate(vxr_i.reshape(-1), vyr_i.reshape(-1), delta.reshape(-1), 1.0, vxt_r.reshape(-1),
+        rotate_kernel(vxr_i.reshape(-1), vyr_i.reshape(-1), delta.reshape(-1), 1.0, vxt_r.reshape(-1),
                 vyt_r.reshape(-1))
         slip = np.empty((1, 4))
-        _slip_ratio(omega.reshape(-1), vxt_r.reshape(-1), radius, 0.1, slip.reshape(-1))
+        slip_ratio_kernel(omega.reshape(-1), vxt_r.reshape(-1), radius, 0.1, slip.reshape(-1))
         vx_b = np.empty((1, 4))
         vy_b = np.empty((1, 4))
-        _rotate(k_vxt.reshape(-1), np.zeros(4), delta.reshape(-1), -1.0, vx_b.reshape(-1),
+        rotate_kernel(k_vxt.reshape(-1), np.zeros(4), delta.reshape(-1), -1.0, vx_b.reshape(-1),
                 vy_b.reshape(-1))
         phi = np.empty((1, 4))
         for i in range(4):
@@ -230,15 +236,15 @@ def step_kernel(s: np.ndarray, out: np.ndarray, fprm: np.ndarray, nl_prm: np.nda
                              radius, lf, lr, xw, yw, ref_prm, fus_x, fus_P, fus_hist, fus_state,
                              v, sig, bias, trust)
     # --- outputs (Pipeline._groups order) ---
-    vx_o, vy_o = _transport(v[0, 0:1].copy(), v[0, 1:2].copy(), r1, xw, yw, 1.0)
+    vx_o, vy_o = transport_kernel(v[0, 0:1].copy(), v[0, 1:2].copy(), r1, xw, yw, 1.0)
     vxt = np.empty((1, 4))
     vyt = np.empty((1, 4))
-    _rotate(vx_o.reshape(-1), vy_o.reshape(-1), delta.reshape(-1), 1.0, vxt.reshape(-1),
+    rotate_kernel(vx_o.reshape(-1), vy_o.reshape(-1), delta.reshape(-1), 1.0, vxt.reshape(-1),
             vyt.reshape(-1))
     sr = np.empty((1, 4))
-    _slip_ratio(omega.reshape(-1), vxt.reshape(-1), radius, 0.1, sr.reshape(-1))
+    slip_ratio_kernel(omega.reshape(-1), vxt.reshape(-1), radius, 0.1, sr.reshape(-1))
     sa = np.empty((1, 4))
-    _slip_angle(vxt.reshape(-1), vyt.reshape(-1), 0.5, sa.reshape(-1))
+    slip_angle_kernel(vxt.reshape(-1), vyt.reshape(-1), 0.5, sa.reshape(-1))
     k = 0
     out[k] = t1[0]
     out[k + 1] = v[0, 0]

@@ -50,11 +50,13 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+from numpy.typing import NDArray
 
-from vestim.design.lmi import FArray
 from vestim.errors import VestimError
 from vestim.io.files import write_text_atomic
 from vestim.models.lpv import LuGreAxis
+
+FArray = NDArray[np.float64]
 
 __all__ = [
     "DIRECTIONS",

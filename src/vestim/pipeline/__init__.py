@@ -30,7 +30,6 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
-from vestim import online
 from vestim.constants import CORNERS
 from vestim.errors import VestimError
 from vestim.estimators.force import ForceConfig, ForceEstimator
@@ -61,6 +60,7 @@ from vestim.estimators.velocity.reference import (
 )
 from vestim.io.vehicle import Vehicle
 from vestim.models import kinematics as kin
+from vestim.pipeline import online
 
 VELOCITY_METHODS: tuple[str, ...] = ("fused", "reference", "kinematic", "kf", "ukf", "lpv")
 CORNER_METHODS = {"kf": "lugre_kf", "ukf": "lugre_ukf", "lpv": "lpv"}
@@ -147,7 +147,7 @@ class PipelineConfig:
 
 def _lpv_params_from_gains(path: str) -> LPVParams:
     """LPV observer parameters from a gains file of ``vestim design lpv`` (innovation form)."""
-    from vestim.design.gains import load_gains  # offline toolkit: imported only when used
+    from vestim.estimators.velocity.lpv_gains import load_gains
 
     schedule = load_gains(path)
 
@@ -396,7 +396,7 @@ class Pipeline:
         """Advance by one sample (mapping of the log's column names); return that row.
 
         Samples with wheel torques and ``az`` in the common configurations go through one
-        compiled call (:mod:`vestim.online`); others through the general path. Both give
+        compiled call (:mod:`vestim.pipeline.online`); others through the general path. Both give
         the batch result.
         """
         row = self._fast_step(sample)
@@ -408,7 +408,7 @@ class Pipeline:
         return {k: float(v[0]) for k, v in cols.items()}
 
     def _fast_step(self, sample: Mapping[str, float]) -> dict[str, float] | None:
-        """One sample through :func:`vestim.online.step_kernel`, or None if not covered
+        """One sample through :func:`vestim.pipeline.online.step_kernel`, or None if not covered
         (a ``gnss_speed`` channel takes the general path)."""
         if "gnss_speed" in sample:
             return None
@@ -448,3 +448,28 @@ class Pipeline:
         row["radius_scale"] = 1.0  # no gnss_speed on this path
         row["gnss_latency"] = 0.0
         return row
+
+
+def estimate(
+    log: pd.DataFrame | str | Path,
+    vehicle: Vehicle | str | Path,
+    config: PipelineConfig | None = None,
+) -> pd.DataFrame:
+    """Estimate forces and velocities for a whole log: the library form of ``vestim estimate``.
+
+    Args:
+        log: a drive log (spec columns and SI units, ``../spec/log-format.md``) or the path of
+            a ``.csv`` / ``.parquet`` file; it is only read.
+        vehicle: a :class:`~vestim.io.vehicle.Vehicle`, a vehicle TOML file or a built-in name.
+        config: the stages and their parameters (default: :class:`PipelineConfig`).
+
+    Returns:
+        One row per input sample: ``t`` and the estimate channels listed in this module's
+        docstring (SI units).
+    """
+    from vestim.io import load_vehicle, read_log
+
+    veh = vehicle if isinstance(vehicle, Vehicle) else load_vehicle(vehicle)
+    df = log if isinstance(log, pd.DataFrame) else read_log(
+        log, require=["measured"], wheel_radius=veh.body.wheel_radius)
+    return Pipeline(veh, config).run(df)
