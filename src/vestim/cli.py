@@ -11,6 +11,7 @@ from pathlib import Path
 from typing import Annotated
 
 import numpy as np
+import rich.markup
 import typer
 from rich.console import Console
 from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
@@ -25,16 +26,35 @@ from vestim.report.plots import plot_simulation, save_figure
 from vestim.sim import DEFAULT_SET, SensorModel, get_maneuver, maneuver_names, simulate
 from vestim.sim.maneuvers import Maneuver, describe
 
-app = typer.Typer(add_completion=False, no_args_is_help=True,
+# rich_markup_mode=None: help text is printed as written; Rich markup would delete every
+# bracketed word ("a [pipeline] table" read "a  table").
+app = typer.Typer(add_completion=False, no_args_is_help=True, rich_markup_mode=None,
                   help="Corner-based vehicle state and tire-force estimation.")
 console = Console(stderr=True)
+
+
+def _version(value: bool) -> None:
+    if value:
+        from vestim import __version__
+
+        typer.echo(f"vestim {__version__}")
+        raise typer.Exit()
+
+
+@app.callback()
+def _main(
+    version: Annotated[bool, typer.Option("--version", callback=_version, is_eager=True,
+                                          help="Print the version and exit.")] = False,
+) -> None:
+    """Corner-based vehicle state and tire-force estimation."""
 
 VehicleOpt = Annotated[str, typer.Option("--vehicle", help="Vehicle TOML file or built-in name "
                                          "(hashemi_suv, compact_car).")]
 
 
 def _fail(exc: Exception) -> typer.Exit:
-    console.print(f"[red]error:[/red] {exc}")
+    # escape: a message naming an extra ("vestim[report]") is not Rich markup
+    console.print(f"[red]error:[/red] {rich.markup.escape(str(exc))}")
     return typer.Exit(code=2)
 
 
@@ -79,8 +99,8 @@ def simulate_cmd(
         path = write_log(log, out, metadata=log.attrs)
     except (VestimError, ValueError, OSError) as exc:
         raise _fail(exc) from None
-    console.print(f"wrote {path} ({len(log)} samples, {log['t'].iloc[-1]:.1f} s simulated in "
-                  f"{time.perf_counter() - t0:.2f} s)")
+    console.print(rich.markup.escape(f"wrote {path} ({len(log)} samples, {log['t'].iloc[-1]:.1f} "
+                                     f"s simulated in {time.perf_counter() - t0:.2f} s)"))
 
 
 @app.command("estimate")
@@ -103,8 +123,14 @@ def estimate_cmd(
                                         "(002 Algorithm 1).")] = "pipeline",
     particles: Annotated[int, typer.Option(help="Particles of stiffness-pf.")] = 500,
     seed: Annotated[int, typer.Option(help="Random seed of stiffness-pf.")] = 0,
+    map_path: Annotated[Path | None, typer.Option(
+        "--map", help="Channel map (TOML, docs/channel-map.md): LOG is then a raw recording "
+        "read through it, as `vestim import`.")] = None,
 ) -> None:
     """Estimate tire forces and vehicle/corner velocities (or tire stiffness) from a measured log."""
+    if map_path is not None and method != "pipeline":
+        raise _fail(ValueError("--map works with --method pipeline; for other methods convert "
+                               "the recording first with `vestim import`"))
     if method == "stiffness-pf":
         _estimate_stiffness(log_path, out, vehicle, particles, seed)
         return
@@ -115,27 +141,46 @@ def estimate_cmd(
         cfg = (PipelineConfig.from_toml(config) if config is not None
                else PipelineConfig(force=force, normal=normal, velocity=velocity, fusion=fusion,
                                    gains=str(gains) if gains else None))
-        log = read_log(log_path, require=["measured"], wheel_radius=veh.body.wheel_radius)
+        log = (read_log(log_path, require=["measured"], wheel_radius=veh.body.wheel_radius)
+               if map_path is None else _import_for_estimate(log_path, map_path,
+                                                             veh.body.wheel_radius))
+        # Cross-channel checks (docs/input-checks.md): errors exit 2, warnings are kept.
+        import json
+
+        from vestim.io import check_log
+
+        warnings = check_log(log, veh, source=str(log_path))
         t0 = time.perf_counter()
         pipe = Pipeline(veh, cfg)
         est = pipe.run(log)
         meta = {"vehicle": veh.name, "force": cfg.force, "normal": cfg.normal,
                 "velocity": cfg.velocity, "fusion": cfg.fusion, "source": str(log_path),
-                **pipe.force.input_sources}
+                **pipe.force.input_sources,
+                "warnings": json.dumps([w.as_dict() for w in warnings], ensure_ascii=False)}
         path = write_log(est, out, metadata=meta)
     except (VestimError, ValueError, OSError) as exc:
         raise _fail(exc) from None
+    esc = rich.markup.escape
+    for w in warnings:
+        console.print(f"[yellow]warning:[/yellow] {esc(w.message)}")
     if meta.get("torque_source") != "measured":
-        console.print("note: the log has no wheel torques; F_x comes from the chassis equation "
-                      "(m·a_x + drag) split by the vehicle file's [powertrain] front_drive_share "
-                      "and brake_front_share (vestim.models.chassis)")
+        console.print(esc("note: the log has no wheel torques; F_x comes from the chassis equation "
+                          "(m·a_x + drag) split by the vehicle file's [powertrain] "
+                          "front_drive_share and brake_front_share (vestim.models.chassis)"))
     missing = [k.split("_")[0] for k in ("roll_source", "pitch_source")
                if meta.get(k) == "quasi_static"]
     if missing:
         console.print(f"note: no {'/'.join(missing)} rate: quasi-static attitude from the "
                       "accelerations (suspension dynamics in the load transfer are lost)")
-    console.print(f"wrote {path} ({len(est)} samples, {len(est.columns) - 1} channels, "
-                  f"{time.perf_counter() - t0:.2f} s)")
+    if meta.get("ax_source", "measured") != "measured":
+        console.print(esc(f"note: no ax: a_x from the derivative of {meta['ax_source']} "
+                          "(grade and slip detection degrade, docs/fewer-sensors.md)"))
+    if meta.get("outputs_unavailable", "none") != "none":
+        console.print(esc(f"note: no wheel speeds: velocities from {meta['speed_source']}; not "
+                          "given (metadata outputs_unavailable): slip ratios, per-corner F_x, "
+                          "mu_x, radius_scale, gnss_latency"))
+    console.print(esc(f"wrote {path} ({len(est)} samples, {len(est.columns) - 1} channels, "
+                      f"{time.perf_counter() - t0:.2f} s)"))
 
 
 def _estimate_stiffness(log_path: Path, out: Path, vehicle: str, particles: int,
@@ -152,7 +197,43 @@ def _estimate_stiffness(log_path: Path, out: Path, vehicle: str, particles: int,
                                              "source": str(log_path)})
     except (VestimError, ValueError, OSError) as exc:
         raise _fail(exc) from None
-    console.print(f"wrote {path} ({len(est)} samples, {time.perf_counter() - t0:.2f} s)")
+    console.print(rich.markup.escape(f"wrote {path} ({len(est)} samples, "
+                                     f"{time.perf_counter() - t0:.2f} s)"))
+
+
+def _import_for_estimate(src: Path, map_path: Path, wheel_radius: float):  # type: ignore[no-untyped-def]
+    """A raw recording through a channel map, checked as `read_log` checks a log to estimate."""
+    from vestim.io.channel_map import describe_report, import_log
+    from vestim.io.log import validate_log
+
+    log, report = import_log(src, map_path)
+    for line in describe_report(report):
+        console.print(rich.markup.escape(line))
+    validate_log(log, require=["measured"], wheel_radius=wheel_radius,
+                 source=f"{src} (through {map_path})")
+    return log
+
+
+@app.command("import")
+def import_cmd(
+    src: Annotated[Path, typer.Argument(metavar="SRC", help="Raw recording: CSV/Parquet, numpy "
+                                        "folder, MDF4 (.mf4), ROS 2 bag (.db3/.mcap/folder).")],
+    map_path: Annotated[Path, typer.Option("--map", help="Channel map (TOML, "
+                                           "docs/channel-map.md).")],
+    out: Annotated[Path, typer.Option("--out", help="Drive log to write (.csv or .parquet).")],
+) -> None:
+    """Convert a raw recording into a drive log through a channel map (units, frames, rates)."""
+    from vestim.io.channel_map import describe_report, import_log
+
+    try:
+        log, report = import_log(src, map_path)
+        path = write_log(log, out, metadata=report.metadata())
+    except (VestimError, ValueError, OSError) as exc:
+        raise _fail(exc) from None
+    for line in describe_report(report):
+        console.print(rich.markup.escape(line))
+    console.print(rich.markup.escape(f"wrote {path} ({len(log)} samples at {report.rate:g} Hz, "
+                                     f"{len(log.columns) - 1} channels)"))
 
 
 @app.command("score")
@@ -190,8 +271,79 @@ def plot_cmd(
         typer.echo(str(f))
 
 
-design_app = typer.Typer(no_args_is_help=True, help="Observer design: LMI certificates, LPV gains.")
-analyze_app = typer.Typer(no_args_is_help=True, help="Offline analysis of observers over logs.")
+@app.command("report")
+def report_cmd(
+    estimate: Annotated[Path, typer.Argument(metavar="ESTIMATE", help="Log of estimates (a .parquet "
+                                             "file also gives its metadata).")],
+    reference: Annotated[Path | None, typer.Argument(
+        metavar="[REFERENCE]", help="Log with ref_ channels (and omega_*, ax, ay).")] = None,
+    out: Annotated[Path, typer.Option("--out", help="HTML file to write.")] = Path("report.html"),
+    vehicle: VehicleOpt = "hashemi_suv",
+    title: Annotated[str | None, typer.Option(help="Page title.")] = None,
+) -> None:
+    """Write one self-contained interactive HTML report (plotly, works offline) of an estimate."""
+    from vestim.report.html import write_html_report
+
+    try:
+        veh = load_vehicle(vehicle)
+        meta = {"estimate": str(estimate), "reference": str(reference) if reference else "none",
+                "vehicle": veh.name, "wheel_radius": f"{veh.body.wheel_radius:g} m"}
+        path = write_html_report(read_log(estimate), read_log(reference) if reference else None,
+                                 out, wheel_radius=veh.body.wheel_radius, metadata=meta,
+                                 title=title or f"vestim report: {estimate.name}")
+    except (VestimError, ValueError, OSError) as exc:
+        raise _fail(exc) from None
+    typer.echo(str(path))
+
+
+@app.command("batch")
+def batch_cmd(
+    logs: Annotated[list[Path], typer.Argument(metavar="LOGS...", help="Log files and/or folders "
+                                               "(every *.parquet, *.pq, *.csv inside).")],
+    out: Annotated[Path, typer.Option("--out", help="Output folder: <stem>_estimate.parquet per "
+                                      "log, summary.parquet, summary.md.")],
+    vehicle: Annotated[str, typer.Option("--vehicle", help="Vehicle TOML or built-in name for "
+                                         "every log, or auto: each log's own (<stem>.toml next "
+                                         "to it, crossplant metadata/manifest.json, simulator "
+                                         "metadata).")] = "auto",
+    scheduler: Annotated[str | None, typer.Option(help="Dask scheduler address (tcp://host:port),"
+                                                  " or synchronous; default: a local cluster.")]
+    = None,
+    workers: Annotated[int, typer.Option(help="Worker processes of the local cluster.")] = 2,
+    config: Annotated[Path | None, typer.Option(help="TOML file with a [pipeline] table.")] = None,
+    force: Annotated[bool, typer.Option("--force", help="Recompute logs whose output is up to "
+                                        "date.")] = False,
+) -> None:
+    """Estimate many logs in parallel on Dask; exit 1 if any log failed (see summary.md)."""
+    from rich.markup import escape
+
+    from vestim.batch import collect_logs, run_batch
+
+    try:
+        cfg = PipelineConfig.from_toml(config) if config is not None else None
+        paths = collect_logs(logs, exclude=out)
+        with Progress(TextColumn("{task.description}"), BarColumn(), TextColumn("{task.completed}/"
+                      "{task.total}"), TimeElapsedColumn(), console=console, transient=True,
+                      disable=not console.is_terminal) as bar:
+            task = bar.add_task(f"{len(paths)} logs", total=len(paths))
+            summary = run_batch(paths, vehicle, out, config=cfg, scheduler=scheduler,
+                                n_workers=workers, force=force,
+                                progress=lambda done, _n: bar.update(task, completed=done))
+    except (VestimError, ValueError, OSError) as exc:
+        raise _fail(exc) from None
+    for row in summary.table[summary.table["status"] == "failed"].itertuples(index=False):
+        console.print(f"[red]failed:[/red] {escape(f'{row.log}: {row.error}')}")
+    console.print(f"{len(summary.table)} logs: {summary.count('ok')} ok, {summary.count('skipped')}"
+                  f" skipped, {summary.count('failed')} failed in {summary.wall_s:.1f} s; summary "
+                  f"in {escape(str(summary.summary_md))}")
+    if summary.failed:
+        raise typer.Exit(code=1)
+
+
+design_app = typer.Typer(no_args_is_help=True, rich_markup_mode=None,
+                         help="Observer design: LMI certificates, LPV gains.")
+analyze_app = typer.Typer(no_args_is_help=True, rich_markup_mode=None,
+                          help="Offline analysis of observers over logs.")
 app.add_typer(design_app, name="design")
 app.add_typer(analyze_app, name="analyze")
 
@@ -209,7 +361,7 @@ def design_lpv_cmd(
         path = schedule.save_gains(out)
     except (VestimError, ValueError, OSError) as exc:
         raise _fail(exc) from None
-    console.print(f"wrote {path}")
+    console.print(rich.markup.escape(f"wrote {path}"))
 
 
 @design_app.command("check")
@@ -253,7 +405,7 @@ def demo_cmd(
     seed: Annotated[int, typer.Option(help="Sensor-noise seed.")] = 0,
 ) -> None:
     """Simulate the default maneuver set, estimate, score and plot; print the NRMS table."""
-    table = Table(title=f"vestim demo on {vehicle}: NRMS [%] of the default pipeline "
+    table = Table(title=f"vestim demo on {rich.markup.escape(vehicle)}: NRMS [%] of the default pipeline "
                         "(worst corner for per-corner channels)")
     cols = ("vx", "vy", "vx_*", "fx_*", "fy_*", "fz_*")
     for col in ("maneuver", *cols, "R·ω̄ vx"):
@@ -282,7 +434,8 @@ def demo_cmd(
     except (VestimError, ValueError, OSError) as exc:
         raise _fail(exc) from None
     Console().print(table)
-    Console().print(f"logs, estimates (.parquet) and figures (.png) written to {out}/")
+    Console().print(rich.markup.escape(f"logs, estimates (.parquet) and figures (.png) written "
+                                       f"to {out}/"))
 
 
 def main() -> None:  # pragma: no cover - console entry point
