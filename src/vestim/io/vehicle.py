@@ -76,11 +76,60 @@ class VehicleBody:
         return self.lf + self.lr
 
     def _check(self) -> None:
+        _check_magnitudes(self)
         if self.roll_center_height >= self.cg_height:
             raise VehicleFileError(
                 f"[vehicle] roll_center_height = {self.roll_center_height} m is not below "
                 f"cg_height = {self.cg_height} m; the roll axis must lie below the CG"
             )
+
+
+# Magnitude limits of [vehicle]: each lies beyond every road vehicle in SI units, yet a value in
+# the usual wrong unit (mm, cm, g, t) lands beyond it by a factor of ten or more.
+RADIUS_MAX = 2.0
+"""m; the largest road-vehicle tyres (mining trucks) have a 2 m radius; a car's 0.33 m in mm
+reads 330, in cm 33."""
+LENGTH_MAX = 20.0
+"""m; lf, lr, track_f, track_r, cg_height, roll_center_height of a road vehicle are below 20 m
+(a 1.42 m lf reads 1420 in mm, 142 in cm)."""
+MASS_RANGE = (50.0, 100_000.0)
+"""kg; a road vehicle weighs 50 kg (a light quadricycle's unladen mass is more) to 100 t; a
+1650 kg car reads 1.65 in tonnes and 1 650 000 in grams."""
+
+
+def _length_unit(value: float, typical: float) -> str:
+    """The wrong unit, cm or mm, whose conversion of ``value`` lands nearest ``typical`` m."""
+    unit, scale = min((("centimetres", 100.0), ("millimetres", 1000.0)),
+                      key=lambda u: abs(math.log(value / u[1] / typical)))
+    return f"{unit} ({value:g} {unit[0]}m = {value / scale:g} m)"
+
+
+def _check_magnitudes(body: VehicleBody) -> None:
+    """Wrong-unit magnitudes of ``[vehicle]`` (a radius in mm, a mass in g or t)."""
+    r = body.wheel_radius
+    if r > RADIUS_MAX:
+        raise VehicleFileError(
+            f"[vehicle] wheel_radius = {r:g} m is beyond {RADIUS_MAX:g} m (no road tyre is that "
+            f"large): this looks like {_length_unit(r, 0.35)}; give it in metres"
+        )
+    for name in ("lf", "lr", "track_f", "track_r", "cg_height", "roll_center_height"):
+        v = getattr(body, name)
+        if v > LENGTH_MAX:
+            raise VehicleFileError(
+                f"[vehicle] {name} = {v:g} m is beyond {LENGTH_MAX:g} m: this looks like "
+                f"{_length_unit(v, 1.0)}; give it in metres"
+            )
+    lo, hi = MASS_RANGE
+    if body.mass < lo:
+        raise VehicleFileError(
+            f"[vehicle] mass = {body.mass:g} kg is below {lo:g} kg: this looks like tonnes "
+            f"({body.mass:g} t = {body.mass * 1000:g} kg); give it in kg"
+        )
+    if body.mass > hi:
+        raise VehicleFileError(
+            f"[vehicle] mass = {body.mass:.10g} kg is beyond {hi:g} kg: this looks like grams "
+            f"({body.mass:.10g} g = {body.mass / 1000:g} kg); give it in kg"
+        )
 
 
 @dataclass(frozen=True)
@@ -408,7 +457,11 @@ def load_vehicle(path: str | Path) -> Vehicle:
                 f"vehicle file {str(p)!r} not found; give a TOML path or one of "
                 f"{', '.join(BUILTIN_VEHICLES)}"
             )
-        text = p.read_text(encoding="utf-8")
+        try:
+            # utf-8-sig: a byte-order mark (Windows editors) is not part of the TOML.
+            text = p.read_text(encoding="utf-8-sig")
+        except (UnicodeDecodeError, OSError) as exc:
+            raise VehicleFileError(f"{p}: cannot be read as UTF-8 text: {exc}") from exc
         source = str(p)
         name = p.stem
     try:
