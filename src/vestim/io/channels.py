@@ -43,14 +43,24 @@ SPARSE: tuple[str, ...] = (GNSS_SPEED,)
 """Channels sampled slower than ``t``: a value on the row nearest each of their own samples
 and NaN between (shared/spec/log-format.md, "Sparse channels")."""
 
-MEASURED: tuple[str, ...] = (T, *WHEEL_SPEEDS, *TORQUES, *IMU, *STEERING, *SPARSE)
-"""All measured channels in spec order, optional ones (az, roll_rate, pitch_rate, delta,
-steering_wheel_angle, gnss_speed) included."""
+VEHICLE_SPEED = "vehicle_speed"
+"""Vehicle speed from the CAN bus (the instrument-cluster / ESC reference speed), m/s (≥ 0),
+a dense channel (finite on every row). Not in the spec (proposed by vestim): the velocity
+filter uses it only when the log has no wheel speeds."""
+SPEED_SOURCES: tuple[str, ...] = (VEHICLE_SPEED, GNSS_SPEED)
+"""Speed channels that stand in for the wheel speeds of a log without ``omega_*``."""
 
-MEASURED_REQUIRED: tuple[str, ...] = (T, *WHEEL_SPEEDS, *IMU_REQUIRED)
-"""Mandatory measured channels apart from steering (which has alternatives, see STEERING).
-The wheel torques are all four or none: without them the force stage uses the chassis
-equation (:mod:`vestim.models.chassis`)."""
+MEASURED: tuple[str, ...] = (T, *WHEEL_SPEEDS, *TORQUES, *IMU, *STEERING, *SPARSE,
+                             VEHICLE_SPEED)
+"""All measured channels in spec order, optional ones (az, roll_rate, pitch_rate, delta,
+steering_wheel_angle, gnss_speed, vehicle_speed) included."""
+
+MEASURED_REQUIRED: tuple[str, ...] = (T, "ay", "yaw_rate")
+"""Mandatory measured channels apart from steering (which has alternatives, see STEERING)
+and the speed (all four ``omega_*``, or one of :data:`SPEED_SOURCES`). ``ax`` is optional
+(derived from the speed, see :mod:`vestim.estimators.force.estimator`). The wheel torques
+and the wheel speeds are each all four or none: without torques the force stage uses the
+chassis equation (:mod:`vestim.models.chassis`)."""
 
 # --- reference channels (ground truth, prefix ``ref_``) ---------------------------------------
 
@@ -103,6 +113,7 @@ def _base_units() -> dict[str, str]:
     units.update(dict.fromkeys(("yaw_rate", "roll_rate", "pitch_rate"), "rad/s"))
     units.update(dict.fromkeys(STEERING, "rad"))
     units[GNSS_SPEED] = "m/s"
+    units[VEHICLE_SPEED] = "m/s"
     estimated = {"vx": "m/s", "vy": "m/s", "roll": "rad", "pitch": "rad",
                  "stiffness_cx_f": "N", "stiffness_cx_r": "N",
                  "stiffness_cy_f": "N/rad", "stiffness_cy_r": "N/rad"}

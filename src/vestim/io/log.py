@@ -39,22 +39,26 @@ METADATA_PREFIX = "vestim."
 """Prefix of vestim's keys in Parquet schema metadata."""
 
 REQUIRE_GROUPS: dict[str, tuple[str, ...]] = {
-    "measured": (ch.T, *ch.WHEEL_SPEEDS, *ch.IMU_REQUIRED),
+    "measured": ch.MEASURED_REQUIRED,
     "wheel_speeds": ch.WHEEL_SPEEDS,
     "torques": ch.TORQUES,
     "imu": ch.IMU_REQUIRED,
     "steering": (),
 }
 """Group names accepted by ``require``. "measured" is what the estimators cannot do
-without: t, the wheel speeds, ax, ay, yaw_rate and a steering channel (delta_fl and
-delta_fr, or delta, or steering_wheel_angle; "steering" alone checks only that). The
-wheel torques are all-or-none under "measured": a log without any ``torque_*`` is
-accepted (the force stage then uses the chassis equation, most CAN logs have no wheel
-torques), one with some but not all four is an error; "torques" requires all four.
-az, roll_rate and pitch_rate are optional everywhere; "imu" is ax, ay, yaw_rate."""
+without: t, ay, yaw_rate, a steering channel (delta_fl and delta_fr, or delta, or
+steering_wheel_angle; "steering" alone checks only that) and a speed: the four wheel
+speeds, or, without any ``omega_*``, ``gnss_speed`` or ``vehicle_speed`` (the pipeline then
+gives no per-wheel quantities, see docs/fewer-sensors.md). ``ax`` is optional under
+"measured" (derived from the speed). The wheel torques and the wheel speeds are
+all-or-none under "measured": a log without any ``torque_*`` is accepted (the force stage
+then uses the chassis equation, most CAN logs have no wheel torques), one with some but not
+all four is an error; "torques" requires all four. az, roll_rate and pitch_rate are
+optional everywhere; "imu" is ax, ay, yaw_rate."""
 
 _NEEDS_STEERING = frozenset({"measured", "steering"})
 _TORQUES_ALL_OR_NONE = frozenset({"measured"})
+_NEEDS_SPEED = frozenset({"measured"})
 
 # Unit-plausibility limits (SI expected). Each is far beyond what a road car reaches in SI
 # yet is exceeded by typical signals recorded in the wrong unit.
@@ -116,7 +120,7 @@ def read_log(
         if kind == "csv":
             df = _read_csv(p)
         else:
-            table = pq.read_table(p)
+            table = pq.read_table(p, page_checksum_verification=True)
             df = table.to_pandas()
             meta = table.schema.metadata or {}
             prefix = METADATA_PREFIX.encode()
@@ -125,7 +129,15 @@ def read_log(
                 for k, v in meta.items()
                 if k.startswith(prefix)
             }
-    except (pd.errors.ParserError, pd.errors.EmptyDataError, pa.ArrowException) as exc:
+    except UnicodeDecodeError as exc:
+        raise LogFormatError(f"{p}: not a UTF-8 text file ({exc.reason} at byte {exc.start}); "
+                             "a CSV log is UTF-8 text with a header row") from exc
+    except Exception as exc:
+        # The decoders report a damaged file in many ways (pyarrow: OSError, ArrowInvalid;
+        # pandas: ParserError, a JSON ValueError or a KeyError from corrupt schema metadata):
+        # each means "this file cannot be read", and the decoder's own words say where.
+        if isinstance(exc, FileNotFoundError):
+            raise LogFormatError(f"{p}: file not found") from exc
         raise LogFormatError(f"{p}: cannot be read as {kind.upper()}: {exc}") from exc
     validate_log(df, require=require, wheel_radius=wheel_radius, source=str(p))
     return df
@@ -174,7 +186,7 @@ def write_log(
                 merged.update({(METADATA_PREFIX + k).encode(): v.encode()
                                for k, v in metadata.items()})
                 table = table.replace_schema_metadata(merged)
-            pq.write_table(table, tmp)
+            pq.write_table(table, tmp, write_page_checksum=True)
     return p
 
 
@@ -189,7 +201,9 @@ def validate_log(
 
     Checks, in order: ``t`` present, unique string column names, at least one row, numeric
     columns only, finite values, strictly increasing ``t``; the channels in ``require``
-    (column names or the groups of :data:`REQUIRE_GROUPS`); then unit plausibility:
+    (column names or the groups of :data:`REQUIRE_GROUPS`); with ``require`` ``"measured"``,
+    a median sample interval of at most :data:`MAX_SAMPLE_INTERVAL` (t in ms, µs or ns is
+    named); then unit plausibility:
 
     - ``omega_*``: max |ω| > 400 rad/s looks like rpm;
     - steering angles: max |δ| > π/2 rad (steering_wheel_angle: > 4π rad) looks like degrees;
@@ -215,7 +229,30 @@ def validate_log(
     if isinstance(require, str):
         require = (require,)
     _check_required(df, tuple(require), source)
+    if "measured" in require:  # a log to estimate from, not any table of results
+        _check_time_base(t, source)
     _check_units(df, t, wheel_radius, source)
+
+
+MAX_SAMPLE_INTERVAL = 0.1
+"""Largest median sample interval (s) of a log: below 10 Hz the wheel and body dynamics the
+estimators track (1–15 Hz) are not sampled at all; it is also what ``t`` in milliseconds
+(a 200 Hz log stepping by 5), microseconds or nanoseconds looks like."""
+
+
+def _check_time_base(t: np.ndarray, source: str) -> None:
+    if t.shape[0] < 2:
+        return
+    dt = float(np.median(np.diff(t)))
+    if dt > MAX_SAMPLE_INTERVAL:
+        hint = next((f"; t looks like {unit} (a {1 / (dt / f):.0f} Hz log in s would step by "
+                     f"{dt / f:g})" for unit, f in (("nanoseconds", 1e9), ("microseconds", 1e6),
+                                                    ("milliseconds", 1e3))
+                     if 1e-4 <= dt / f <= MAX_SAMPLE_INTERVAL), "")
+        raise LogFormatError(
+            f"{source}: column 't' steps by {dt:g} s (median){hint}; the estimators need a log "
+            f"of at least {1 / MAX_SAMPLE_INTERVAL:.0f} Hz with t in seconds — divide t by the "
+            "unit's factor")
 
 
 def road_wheel_angles(df: pd.DataFrame, steering_ratio: float | None) -> np.ndarray:
@@ -399,9 +436,20 @@ def _check_required(df: pd.DataFrame, require: tuple[str, ...], source: str) -> 
             needs_steering |= item in _NEEDS_STEERING
             if item in _TORQUES_ALL_OR_NONE and any(c in cols for c in ch.TORQUES):
                 needed.extend(ch.TORQUES)  # some torques given: the rest are missing
+            lower = {c.strip().lower() for c in cols}
+            if item in _NEEDS_SPEED and (any(c in lower for c in ch.WHEEL_SPEEDS)
+                                         or not any(c in cols for c in ch.SPEED_SOURCES)):
+                needed.extend(ch.WHEEL_SPEEDS)  # some wheel speeds given, or no other speed
         else:
             needed.append(item)
     missing = list(dict.fromkeys(c for c in needed if c not in cols))
+    if (_NEEDS_SPEED.intersection(require) and set(ch.WHEEL_SPEEDS) <= set(missing)
+            and not any(c.strip().lower() in ch.WHEEL_SPEEDS for c in cols)):
+        raise LogFormatError(
+            f"{source}: no speed channel: needs the four wheel speeds omega_fl, omega_fr, "
+            "omega_rl, omega_rr [rad/s], or, without them, gnss_speed [m/s] (sparse) or "
+            "vehicle_speed [m/s] (CAN vehicle speed, dense); add one of them"
+        )
     if missing:
         lookup = {c.strip().lower(): c for c in df.columns}
         hints = [f"{lookup[m.lower()]!r} → {m!r}" for m in missing

@@ -17,6 +17,21 @@ Outputs (spec names): ``vx``, ``vy``, ``sigma_vx``, ``sigma_vy``, per corner
 bounds, 1/rad), ``radius_scale`` (the effective-radius factor from ``gnss_speed``, 1
 without it) and ``gnss_latency`` (the receiver's latency found from it, s; 0 without
 it). Only measured channels are read.
+
+Fewer sensors (docs/fewer-sensors.md): a log without ``ax`` gets it from the speed (the
+force stage's :func:`~vestim.estimators.force.estimator.wheel_reference_speed` or
+:func:`~vestim.estimators.force.estimator.speed_derivative`; the reference filter then takes
+it as v̇_x, ``fx_from_speed``); a log without wheel speeds but with ``gnss_speed`` or a dense
+``vehicle_speed`` runs the reference filter with no wheel measurement (v_x from a_x
+integrated with the speed updates, v_y from its unchanged lateral part: a_y − r v_x with the
+linear-tire slip-angle bounds), and the per-wheel outputs that need ω (``slip_ratio_*``,
+``fx_*``, ``mu_x_*``, ``sigma_fx_*``, ``radius_scale``, ``gnss_latency``) are left out (a log
+holds no NaN outside its sparse channels); only the "fused" and "reference" velocity
+methods run without wheel speeds. The force estimator's ``input_sources`` (the output
+metadata) then holds ``ax_source`` ("measured" | "wheel_speeds" | "vehicle_speed" |
+"gnss_speed"), ``speed_source`` ("wheel_speeds" | "vehicle_speed" | "gnss_speed") and
+``outputs_unavailable`` (comma-separated column names, "none" with every sensor) besides
+the torque, attitude and a_z sources.
 """
 
 from __future__ import annotations
@@ -34,6 +49,7 @@ from vestim.constants import CORNERS
 from vestim.errors import VestimError
 from vestim.estimators.force import ForceConfig, ForceEstimator
 from vestim.estimators.force.estimator import (
+    WHEEL_OUTPUTS,
     ColumnGroup,
     Inputs,
     columns_from_groups,
@@ -65,6 +81,11 @@ from vestim.pipeline import online
 VELOCITY_METHODS: tuple[str, ...] = ("fused", "reference", "kinematic", "kf", "ukf", "lpv")
 CORNER_METHODS = {"kf": "lugre_kf", "ukf": "lugre_ukf", "lpv": "lpv"}
 
+
+WHEEL_ONLY_OUTPUTS: tuple[str, ...] = (
+    *(f"{q}_{c}" for q in ("slip_ratio", *WHEEL_OUTPUTS) for c in CORNERS),
+    "radius_scale", "gnss_latency")
+"""Outputs that need the wheel speeds: left out for a log without them."""
 
 CHUNK = 65_536
 """Samples per chunk of :meth:`Pipeline.run` (bounds the intermediate arrays to ~100 MB)."""
@@ -273,10 +294,19 @@ class Pipeline:
         return self.corner.advance(inp)
 
     def _advance(self, u: Any) -> dict[str, np.ndarray]:
-        res = self.force.advance(u)
+        method = self.config.velocity
+        wheels = u.omega_measured
+        if not wheels and method not in ("fused", "reference"):
+            raise PipelineConfigError(
+                f"velocity method {method!r} needs the wheel speeds omega_fl … omega_rr, which "
+                "the log does not have: use velocity 'reference' or 'fused' (the default)")
+        res = self.force.advance(u)  # fills a missing a_x, and ω from the speed (see module)
+        self.force.note_sources({
+            "ax_source": "measured" if u.ax_measured else u.speed_source,
+            "speed_source": u.speed_source,
+            "outputs_unavailable": "none" if wheels else ",".join(WHEEL_ONLY_OUTPUTS)})
         fz = res["fz"]
         mu_x = normalised(res["fx"], fz)
-        method = self.config.velocity
         n = u.t.shape[0]
         # Linear-tire axle slip angles with the cornering stiffness identified online.
         axle_slip = np.empty((n, 2))
@@ -287,8 +317,11 @@ class Pipeline:
         # speed shows, and the fixes brought forward by the receiver's latency (scale 1 and
         # no measurement without gnss_speed).
         scale, latency, gnss_now = np.empty((3, n))
-        gnss_calibration(u.t, u.omega, u.gnss_speed, self._radius_prm, self._radius_state,
-                         scale, latency, gnss_now)
+        if wheels:
+            gnss_calibration(u.t, u.omega, u.gnss_speed, self._radius_prm, self._radius_state,
+                             scale, latency, gnss_now)
+        else:  # no wheel speeds to scale nor to find the latency against
+            scale[:], latency[:], gnss_now[:] = 1.0, 0.0, u.gnss_speed
         if np.any(scale != 1.0):
             u = replace(u, omega=np.ascontiguousarray(u.omega * scale[:, None]))
         gnss = np.isfinite(gnss_now)
@@ -302,7 +335,18 @@ class Pipeline:
         inflate = np.maximum(p_ref.tau_wheel / np.where(dt > 0, dt, np.inf), 1.0)
         var = np.where(gnss, p_ref.sigma_gnss**2 / inflate, np.nan)[:, None]
         mu_x_c = np.ascontiguousarray(mu_x)
-        if method == "kinematic":
+        if not wheels:
+            # The reference filter without wheel measurements (NaN ω): v_x from a_x and the
+            # speed updates (a dense vehicle_speed enters like a wheel, with the τ_wheel/T_s
+            # inflation), v_y from the same lateral part as with wheel speeds.
+            if u.vehicle_speed is not None:
+                extra = np.column_stack((extra, u.vehicle_speed))
+                var = np.column_stack((var, np.full(n, p_ref.sigma_vehicle_speed**2)))
+            vel = self.reference.advance(u.t, np.full_like(u.omega, np.nan), u.torque, mu_x_c,
+                                         axle_slip, res["f_x"], res["f_y"], u.yaw_rate,
+                                         u.delta, extra, var, fx_from_speed=not u.ax_measured)
+            v, sig, bias = vel["v"], vel["sigma"], vel["bias"][:, 0]
+        elif method == "kinematic":
             v = self.kinematic.advance(u.t, u.omega, res["f_x"], res["f_y"], u.yaw_rate)
             sig = np.full_like(v, np.nan)
             bias = np.full(n, np.nan)
@@ -316,7 +360,8 @@ class Pipeline:
             # no-sideslip approximation fails when the car slides: 4–5 % v_x in RWD spins).
             start = self.reference.snapshot() if self._fused_is_reference else ()
             ref = self.reference.advance(u.t, u.omega, u.torque, mu_x_c, axle_slip, res["f_x"],
-                                         res["f_y"], u.yaw_rate, u.delta, extra, var)
+                                         res["f_y"], u.yaw_rate, u.delta, extra, var,
+                                         fx_from_speed=not u.ax_measured)
             out = self._corners(u, res, mu_x_c, ref)
             vx_corner = self._fuse_corners(out, u, res, ref["v"])
             p = self.config.reference
@@ -333,11 +378,13 @@ class Pipeline:
                 var2 = np.column_stack((var, np.where(all_slip, p.sigma_corner_slip**2,
                                                       np.nan)))
                 vel = self.fused.advance(u.t, u.omega, u.torque, mu_x_c, axle_slip, res["f_x"],
-                                         res["f_y"], u.yaw_rate, u.delta, extra2, var2)
+                                         res["f_y"], u.yaw_rate, u.delta, extra2, var2,
+                                         fx_from_speed=not u.ax_measured)
             v, sig, bias = vel["v"], vel["sigma"], vel["bias"][:, 0]
         else:
             vel = self.reference.advance(u.t, u.omega, u.torque, mu_x_c, axle_slip, res["f_x"],
-                                         res["f_y"], u.yaw_rate, u.delta, extra, var)
+                                         res["f_y"], u.yaw_rate, u.delta, extra, var,
+                                         fx_from_speed=not u.ax_measured)
             v, sig, bias = vel["v"], vel["sigma"], vel["bias"][:, 0]
             if self.corner is not None:
                 out = self._corners(u, res, mu_x_c, vel)
@@ -346,12 +393,16 @@ class Pipeline:
                 sig = np.full_like(v, np.nan)
         vx_i, vy_i = kin.cg_to_corners(v[:, 0], v[:, 1], u.yaw_rate, self._xw, self._yw)
         vxt, vyt = kin.to_tire_frame(vx_i, vy_i, u.delta)
+        slip_ratio = kin.slip_ratio(u.omega, vxt, self.vehicle.body.wheel_radius)
+        if not wheels:
+            slip_ratio = np.full_like(slip_ratio, np.nan)
+            scale = np.full(n, np.nan)
+            latency = np.full(n, np.nan)
         res.update({"v": v, "sigma_v": sig, "bias": bias, "vx_i": vx_i, "vy_i": vy_i,
                     "cornering_stiffness": c_y, "radius_scale": scale,
                     "gnss_latency": latency,
                     "vxt": vxt, "vyt": vyt,
-                    "slip_ratio": kin.slip_ratio(u.omega, vxt, self.vehicle.body.wheel_radius),
-                    "slip_angle": kin.slip_angle(vxt, vyt)})
+                    "slip_ratio": slip_ratio, "slip_angle": kin.slip_angle(vxt, vyt)})
         return res
 
     @staticmethod
@@ -361,18 +412,21 @@ class Pipeline:
         def names(prefix: str) -> list[str]:
             return [f"{prefix}_{c}" for c in CORNERS]
 
+        wheels = bool(res["wheel_speeds"])  # else the outputs of WHEEL_ONLY_OUTPUTS are left out
         groups: list[ColumnGroup] = [(["t"], t), (["vx", "vy"], res["v"])]
         if not np.all(np.isnan(res["sigma_v"])):
             groups.append((["sigma_vx", "sigma_vy"], res["sigma_v"]))
         groups += [(names("vx"), res["vx_i"]), (names("vy"), res["vy_i"]),
-                   (names("vxt"), res["vxt"]), (names("vyt"), res["vyt"]),
-                   (names("slip_ratio"), res["slip_ratio"]),
-                   (names("slip_angle"), res["slip_angle"]), *force_groups(res)]
+                   (names("vxt"), res["vxt"]), (names("vyt"), res["vyt"])]
+        if wheels:
+            groups.append((names("slip_ratio"), res["slip_ratio"]))
+        groups += [(names("slip_angle"), res["slip_angle"]), *force_groups(res)]
         if not np.all(np.isnan(res["bias"])):
             groups.append((["bias_ax"], res["bias"]))
         groups.append((["cornering_stiffness"], res["cornering_stiffness"]))
-        groups.append((["radius_scale", "gnss_latency"],
-                       np.column_stack((res["radius_scale"], res["gnss_latency"]))))
+        if wheels:
+            groups.append((["radius_scale", "gnss_latency"],
+                           np.column_stack((res["radius_scale"], res["gnss_latency"]))))
         if "confidence" in res:
             groups.append((names("confidence"), res["confidence"]))
         return groups
@@ -443,7 +497,9 @@ class Pipeline:
             self.force.note_sources({
                 "torque_source": "measured", "az_source": "measured",
                 "roll_source": "rate" if rates[0] else "quasi_static",
-                "pitch_source": "rate" if rates[1] else "quasi_static"})
+                "pitch_source": "rate" if rates[1] else "quasi_static",
+                "ax_source": "measured", "speed_source": "wheel_speeds",
+                "outputs_unavailable": "none"})
         row = dict(zip(self._step_names, out.tolist(), strict=True))
         row["radius_scale"] = 1.0  # no gnss_speed on this path
         row["gnss_latency"] = 0.0

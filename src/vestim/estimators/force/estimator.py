@@ -25,6 +25,26 @@ Missing channels (``shared/spec/log-format.md``; the gap of 001 Sec. VI):
 * no ``az``: the road-normal specific force is taken as g (level road, no heave;
   :func:`vestim.models.kinematics.level_road_az`): road undulations and heave are lost, and a
   grade or bank γ reduces the true value by the factor cos γ (0.1 % at 5 %).
+* no ``ax`` (OBD logs): a_x is the derivative of a reference wheel speed, low-passed
+  (:func:`wheel_reference_speed`: the free-rolling wheels while accelerating, the fastest
+  wheel while decelerating), or without wheel speeds of ``vehicle_speed`` / ``gnss_speed``
+  (:func:`speed_derivative`); it is the road-plane f_x itself (not rotated by the pitch).
+  :attr:`ForceEstimator.input_sources` says ``ax_source`` = "wheel_speeds" (or the speed
+  channel's name). It is v̇_x, not a specific force (the velocity filter then leaves r v_y
+  out of its prediction, see :meth:`~vestim.estimators.velocity.reference.ReferenceFilter.
+  advance`). What degrades: it holds no grade (g sin γ) and lags by about 0.1 s (0.5 s
+  from GNSS fixes), so F_x from the chassis equation (logs without torques) carries a
+  grade as a force, and the reference filter's accelerometer slip evidence |R ω̇ − a_x|
+  compares the wheels with themselves (a spin of the free-rolling axle, or of all four
+  wheels, is no longer seen by it; the μ_x evidence remains). docs/fewer-sensors.md has
+  the figures.
+* no ``omega_*`` (all four absent; a partial set is an error) but ``vehicle_speed`` (dense)
+  or ``gnss_speed`` (sparse): the force stage's speed references (attitude, drag, lateral
+  split, the pipeline's stiffness regression) use that speed (``gnss_speed`` held between
+  fixes and advanced by a_x, :func:`speed_hold`) on all four wheels, and F_x is the chassis
+  equation's (or the measured torques') share without the wheels' inertia. Per-corner F_x
+  (and μ_x, σ_Fx) cannot be given: they are left out of the output (``speed_source`` names
+  the channel used, :data:`WHEEL_OUTPUTS` lists what is lost).
 """
 
 from __future__ import annotations
@@ -48,8 +68,26 @@ from vestim.models import chassis
 from vestim.models.kinematics import level_road_az, road_specific_force
 
 TORQUES: tuple[str, ...] = tuple(f"torque_{c}" for c in CORNERS)
-REQUIRED = ("t", *[f"omega_{c}" for c in CORNERS], "ax", "ay", "yaw_rate")
-"""Channels the force stage cannot do without; the torques are all-or-none (see module doc)."""
+OMEGAS: tuple[str, ...] = tuple(f"omega_{c}" for c in CORNERS)
+SPEEDS: tuple[str, ...] = ("vehicle_speed", "gnss_speed")
+"""Speed channels that stand in for the wheel speeds (dense first: preferred)."""
+REQUIRED = ("t", "ay", "yaw_rate")
+"""Channels the force stage cannot do without, besides a speed: the four ``omega_*`` or one
+of :data:`SPEEDS`. The torques and wheel speeds are all-or-none (see module doc)."""
+WHEEL_OUTPUTS: tuple[str, ...] = ("fx", "mu_x", "sigma_fx")
+"""Per-corner force outputs (``<name>_fl`` …) that need wheel speeds (left out without them)."""
+AX_TAU = (0.05, 0.05)
+"""Low-pass time constants (speed, derivative), s, of a_x from a dense speed: with the
+wheel-speed noise σ_ω R ≈ 0.02 m/s at 200 Hz the derivative's noise is ≈ 0.05 m/s²; delay
+≈ 0.1 s."""
+AX_BRAKING = 0.0
+"""Deceleration (m/s²) beyond which a_x from the wheel speeds follows the fastest wheel
+(every wheel may be braked) rather than the free-rolling ones. 0: on the crossplant logs
+without ax, 0.5 m/s² raised the v_x RMSE of the brake logs x03/x07 from 0.085/0.078 to
+0.125/0.101 m/s and changed no other log by more than 0.005 m/s."""
+AX_TAU_SPARSE = (0.0, 0.5)
+"""The same for ``gnss_speed`` fixes (each fix differenced with the previous one, then
+low-passed over 0.5 s: 0.05 m/s fix noise at 10 Hz gives ≈ 0.2 m/s²)."""
 
 
 @dataclass(frozen=True)
@@ -124,16 +162,34 @@ class Inputs:
     az_measured: bool = True
     roll_rate_measured: bool = True
     pitch_rate_measured: bool = True
+    vehicle_speed: np.ndarray | None = None
+    ax_measured: bool = True
+    omega_measured: bool = True
+
+    @property
+    def speed_source(self) -> str:
+        """"wheel_speeds", or the speed channel that stands in for them."""
+        if self.omega_measured:
+            return "wheel_speeds"
+        return "vehicle_speed" if self.vehicle_speed is not None else "gnss_speed"
 
     @property
     def sources(self) -> dict[str, str]:
-        """Where each optional input comes from (see :attr:`ForceEstimator.input_sources`)."""
-        return {
+        """Where each optional input comes from (see :attr:`ForceEstimator.input_sources`).
+
+        ``ax_source`` and ``speed_source`` are listed only where a_x or the wheel speeds are
+        missing (the pipeline lists them always)."""
+        out = {
             "torque_source": "measured" if self.torque_measured else "chassis",
             "roll_source": "rate" if self.roll_rate_measured else "quasi_static",
             "pitch_source": "rate" if self.pitch_rate_measured else "quasi_static",
             "az_source": "measured" if self.az_measured else "level_road",
         }
+        if not self.ax_measured:
+            out["ax_source"] = self.speed_source
+        if not self.omega_measured:
+            out["speed_source"] = self.speed_source
+        return out
 
 
 def _check_torques(present: set[str] | Mapping[str, float], what: str) -> bool:
@@ -148,6 +204,25 @@ def _check_torques(present: set[str] | Mapping[str, float], what: str) -> bool:
         "in which case F_x comes from the chassis equation (vestim.models.chassis)")
 
 
+def _check_speeds(present: set[str] | Mapping[str, float], what: str) -> bool:
+    """True if all four wheel speeds are present, False if none and a speed channel stands in;
+    else a LogFormatError naming what is missing."""
+    have = [c for c in OMEGAS if c in present]
+    if len(have) == len(OMEGAS):
+        return True
+    if have:
+        missing = [c for c in OMEGAS if c not in present]
+        raise LogFormatError(
+            f"the {what} has wheel speed(s) {', '.join(have)} but not {', '.join(missing)}: "
+            "give all four (rad/s) or drop every omega_* column and give gnss_speed or "
+            "vehicle_speed (m/s)")
+    if not any(c in present for c in SPEEDS):
+        raise LogFormatError(
+            f"the {what} has no speed channel: give the four wheel speeds omega_fl … omega_rr "
+            "(rad/s), or gnss_speed (sparse) or vehicle_speed (dense CAN vehicle speed), m/s")
+    return False
+
+
 def _column(log: pd.DataFrame, name: str, default: float) -> np.ndarray:
     if name in log.columns:
         return np.ascontiguousarray(log[name].to_numpy(dtype=float))
@@ -157,12 +232,14 @@ def _column(log: pd.DataFrame, name: str, default: float) -> np.ndarray:
 def inputs_from_log(log: pd.DataFrame, vehicle: Vehicle) -> Inputs:
     """Extract and check the measured channels the force stage needs (never ``ref_``).
 
-    Required: ``t``, ``omega_*``, ``ax``, ``ay``, ``yaw_rate`` and a steering channel.
-    Optional: the four ``torque_*`` together, ``az``, ``roll_rate``, ``pitch_rate``
-    (NaN in :class:`Inputs` when absent; see the module docstring for what is lost).
+    Required: ``t``, ``ay``, ``yaw_rate``, a steering channel and a speed (the four
+    ``omega_*``, or ``vehicle_speed`` or ``gnss_speed``). Optional: ``ax``, the four
+    ``torque_*`` together, ``az``, ``roll_rate``, ``pitch_rate`` (NaN in :class:`Inputs` when
+    absent, ``omega`` too; see the module docstring for what is lost).
 
     Raises:
-        LogFormatError: a required column is missing, or only some of the torques are there.
+        LogFormatError: a required column is missing, or only some of the torques or wheel
+            speeds are there.
     """
     missing = [c for c in REQUIRED if c not in log.columns]
     if missing:
@@ -170,6 +247,7 @@ def inputs_from_log(log: pd.DataFrame, vehicle: Vehicle) -> Inputs:
                              "add them to the log (see shared/spec/log-format.md)")
     cols = set(log.columns)
     has_torque = _check_torques(cols, "log")
+    has_omega = _check_speeds(cols, "log")
     front = road_wheel_angles(log, vehicle.body.steering_ratio)
     delta = np.zeros((len(log), 4))
     delta[:, :2] = front
@@ -177,15 +255,87 @@ def inputs_from_log(log: pd.DataFrame, vehicle: Vehicle) -> Inputs:
               else np.full((len(log), 4), np.nan))
     return Inputs(
         t=np.ascontiguousarray(log["t"].to_numpy(dtype=float)),
-        omega=np.ascontiguousarray(log[[f"omega_{c}" for c in CORNERS]].to_numpy(dtype=float)),
+        omega=(np.ascontiguousarray(log[list(OMEGAS)].to_numpy(dtype=float)) if has_omega
+               else np.full((len(log), 4), np.nan)),
         torque=torque,
-        ax=_column(log, "ax", 0.0), ay=_column(log, "ay", 0.0), az=_column(log, "az", np.nan),
+        ax=_column(log, "ax", np.nan), ay=_column(log, "ay", 0.0), az=_column(log, "az", np.nan),
         yaw_rate=_column(log, "yaw_rate", 0.0), roll_rate=_column(log, "roll_rate", np.nan),
         pitch_rate=_column(log, "pitch_rate", np.nan), delta=delta,
         gnss_speed=_column(log, "gnss_speed", np.nan),
         torque_measured=has_torque, az_measured="az" in cols,
         roll_rate_measured="roll_rate" in cols, pitch_rate_measured="pitch_rate" in cols,
+        vehicle_speed=(_column(log, "vehicle_speed", np.nan) if "vehicle_speed" in cols
+                       else None),
+        ax_measured="ax" in cols, omega_measured=has_omega,
     )
+
+
+@njit(cache=True, error_model="numpy")
+def wheel_reference_speed(t: np.ndarray, omega: np.ndarray, yaw_rate: np.ndarray,
+                          yw: np.ndarray, radius: float, free: int, tau_v: float,
+                          tau_a: float, state: np.ndarray, out: np.ndarray) -> None:
+    """a_x (n,) m/s² from the wheel speeds (n, 4) rad/s, by :func:`speed_derivative` of a
+    reference speed. Each wheel's speed is brought to the CG's, R ω_i + r y_i (yaw rate r
+    rad/s, lateral positions ``yw`` m); the reference is, while accelerating (or steady),
+    the free-rolling wheels' (the mean of axle ``free``, 0 front, 1 rear; with ``free`` < 0,
+    AWD, the slowest wheel), while decelerating (the derivative so far < 0: every wheel may
+    be braked: beyond :data:`AX_BRAKING`) the fastest wheel's, as an ABS reference speed. ``state`` as
+    :func:`speed_derivative`'s."""
+    v = np.empty(1)
+    a = np.empty(1)
+    w = np.empty(4)
+    for k in range(t.shape[0]):
+        for i in range(4):
+            w[i] = radius * omega[k, i] + yaw_rate[k] * yw[i]
+        if state[3] == 1.0 and state[2] < -AX_BRAKING:
+            ref = w.max()
+        elif free >= 0:
+            ref = 0.5 * (w[2 * free] + w[2 * free + 1])
+        else:
+            ref = w.min()
+        v[0] = ref
+        speed_derivative(t[k:k + 1], v, tau_v, tau_a, state, a)
+        out[k] = a[0]
+
+
+@njit(cache=True, error_model="numpy")
+def speed_derivative(t: np.ndarray, v: np.ndarray, tau_v: float, tau_a: float,
+                     state: np.ndarray, out: np.ndarray) -> None:
+    """Causal derivative of a speed v (n,) m/s into ``out`` (n,) m/s²: v low-passed (τ_v),
+    backward-differenced between its finite samples, low-passed again (τ_a, both s).
+
+    NaN samples of v (a sparse channel between fixes) hold the output. ``state`` = [t of the
+    last finite v, its low-passed value, the derivative, started] carries over chunks;
+    0 until the second finite sample.
+    """
+    for k in range(t.shape[0]):
+        if not np.isnan(v[k]):
+            if state[3] == 0.0:
+                state[0], state[1], state[2], state[3] = t[k], v[k], 0.0, 1.0
+            else:
+                dt = t[k] - state[0]
+                if dt > 0.0:
+                    g = min(dt / tau_v, 1.0) if tau_v > 0.0 else 1.0
+                    v_lp = state[1] + g * (v[k] - state[1])
+                    g = min(dt / tau_a, 1.0) if tau_a > 0.0 else 1.0
+                    state[2] += g * ((v_lp - state[1]) / dt - state[2])
+                    state[0], state[1] = t[k], v_lp
+        out[k] = state[2]
+
+
+@njit(cache=True, error_model="numpy")
+def speed_hold(t: np.ndarray, fix: np.ndarray, ax: np.ndarray, state: np.ndarray,
+               out: np.ndarray) -> None:
+    """A dense speed (n,) m/s from sparse fixes (NaN between): the last fix advanced by the
+    integral of the specific force ``ax`` (m/s²), ≥ 0; 0 before the first fix. ``state`` =
+    [speed, t_prev, started] carries over chunks."""
+    for k in range(t.shape[0]):
+        if state[2] == 1.0:
+            state[0] = max(state[0] + (t[k] - state[1]) * ax[k], 0.0)
+        state[1], state[2] = t[k], 1.0
+        if not np.isnan(fix[k]):
+            state[0] = fix[k]
+        out[k] = state[0]
 
 
 ColumnGroup = tuple[list[str], np.ndarray]
@@ -205,7 +355,9 @@ def normalised(force: np.ndarray, fz: np.ndarray) -> np.ndarray:
 def force_groups(res: Mapping[str, np.ndarray]) -> list[ColumnGroup]:
     """Spec channels of the force stage from :meth:`ForceEstimator.advance`'s result, grouped
     by quantity (``fx_fl … fx_rr``, ``fy_*``, ``fz_*``, ``mu_x_*``, ``mu_y_*``, ``sigma_fx_*``
-    only for methods that have one, ``sigma_fy_*``, ``roll``, ``pitch``).
+    only for methods that have one, ``sigma_fy_*``, ``roll``, ``pitch``). Without wheel
+    speeds (``res["wheel_speeds"]`` False) ``fx_*``, ``mu_x_*`` and ``sigma_fx_*`` are left
+    out.
 
     ``mu_x_*``/``mu_y_*`` are 0 where F_z ≤ 1 N (a lifted wheel).
     """
@@ -214,10 +366,13 @@ def force_groups(res: Mapping[str, np.ndarray]) -> list[ColumnGroup]:
     def names(prefix: str) -> list[str]:
         return [f"{prefix}_{c}" for c in CORNERS]
 
-    mu_x = normalised(res["fx"], fz)
+    wheels = "wheel_speeds" not in res or bool(res["wheel_speeds"])  # else no F_x per corner
     mu_y = normalised(res["fy"], fz)
-    groups: list[ColumnGroup] = [(names("fx"), res["fx"]), (names("fy"), res["fy"]),
-                                 (names("fz"), fz), (names("mu_x"), mu_x), (names("mu_y"), mu_y)]
+    groups: list[ColumnGroup] = [(names("fx"), res["fx"])] if wheels else []
+    groups += [(names("fy"), res["fy"]), (names("fz"), fz)]
+    if wheels:
+        groups.append((names("mu_x"), normalised(res["fx"], fz)))
+    groups.append((names("mu_y"), mu_y))
     if not np.all(np.isnan(res["sigma_fx"])):
         groups.append((names("sigma_fx"), res["sigma_fx"]))
     groups += [(names("sigma_fy"), res["sigma_fy"]), (["roll"], res["roll"]),
@@ -320,6 +475,8 @@ class ForceEstimator:
         self._lat_x = np.zeros(lat.N_X)
         self._lat_P = np.zeros((lat.N_X, lat.N_X))
         self._lat_state = np.zeros(lat.N_STATE)
+        self._ax_state = np.zeros(4)  # speed_derivative's state (logs without ax)
+        self._hold_state = np.zeros(3)  # speed_hold's state (gnss_speed without wheel speeds)
         self._seen: dict[str, set[str]] = {}
 
     @property
@@ -328,8 +485,12 @@ class ForceEstimator:
 
         Keys ``torque_source`` ("measured" | "chassis": the chassis equation of
         :mod:`vestim.models.chassis`), ``roll_source`` and ``pitch_source`` ("rate" |
-        "quasi_static"), ``az_source`` ("measured" | "level_road"); a value is "mixed"
-        when samples of both kinds were processed, and the dict is empty before any.
+        "quasi_static"), ``az_source`` ("measured" | "level_road"), and where a_x or the
+        wheel speeds are missing ``ax_source`` ("wheel_speeds" | "vehicle_speed" |
+        "gnss_speed") and ``speed_source`` ("vehicle_speed" | "gnss_speed"); a value is
+        "mixed" when samples of both kinds were processed, and the dict is empty before any.
+        (:class:`vestim.pipeline.Pipeline` adds ``ax_source``, ``speed_source`` and
+        ``outputs_unavailable`` for every log.)
         """
         return {k: next(iter(v)) if len(v) == 1 else "mixed" for k, v in self._seen.items()}
 
@@ -346,7 +507,8 @@ class ForceEstimator:
     def advance(self, u: Inputs) -> dict[str, np.ndarray]:
         """Process a chunk of measured inputs; state carries over to the next call.
 
-        Returns arrays: ``fx``, ``sigma_fx``, ``fy``, ``sigma_fy``, ``fz`` (n, 4) in N;
+        Returns arrays: ``fx``, ``sigma_fx`` (NaN without wheel speeds), ``fy``, ``sigma_fy``,
+        ``fz`` (n, 4) in N;
         ``roll``, ``pitch`` (n,) in rad; road-plane specific force ``f_x``, ``f_y``,
         ``f_z`` (n,) in m/s²; ``torque`` (n, 4) in N m, the net wheel torques used
         (measured, or from the chassis equation, in which case ``u.torque`` is set to
@@ -356,11 +518,18 @@ class ForceEstimator:
         b = self.vehicle.body
         cfg = self.config
         self.note_sources(u.sources)
+        if not (u.ax_measured and u.omega_measured):
+            self._speed_inputs(u)
         roll, pitch, roll_acc, pitch_acc = np.empty((4, n))
         nrm.attitude_kernel(u.t, u.ax, u.ay, u.roll_rate, u.pitch_rate, u.yaw_rate, u.omega,
                             self._att_prm, self._att, roll, pitch, roll_acc, pitch_acc)
         az = u.az if u.az_measured else level_road_az(u.ax, u.ay, roll, pitch)
         f_x, f_y, f_z = road_specific_force(u.ax, u.ay, az, roll, pitch)
+        if not u.ax_measured:
+            # A speed's derivative is already the road-plane acceleration: rotating it by the
+            # pitch would add a g sin θ that a body-fixed accelerometer reads and it does not
+            # (braking at 4 m/s², ~1° of pitch: 0.2 m/s², v_x 0.9 m/s high on crossplant x10).
+            f_x = u.ax.copy()
         fz = nrm.normal_loads(f_x, f_y, f_z, roll, pitch, u.roll_rate, u.pitch_rate, roll_acc,
                               pitch_acc, self.vehicle, cfg.normal)
         if not u.torque_measured:
@@ -395,9 +564,37 @@ class ForceEstimator:
                            b.mass, b.yaw_inertia, self._xw, self._yw, self._q_lat, self._r_lat,
                            self._w4, self._c4, self._tau4, self._lat_x, self._lat_P,
                            self._lat_state, fy, sig_fy)
+        if not u.omega_measured:  # per-corner F_x needs the wheels' own speeds
+            fx = np.full_like(fx, np.nan)
+            sig_fx = np.full_like(sig_fx, np.nan)
         return {"fx": fx, "sigma_fx": sig_fx, "fy": fy, "sigma_fy": sig_fy, "fz": fz,
                 "roll": roll, "pitch": pitch, "f_x": f_x, "f_y": f_y, "f_z": f_z,
-                "torque": u.torque}
+                "torque": u.torque, "wheel_speeds": np.array(u.omega_measured)}
+
+    def _speed_inputs(self, u: Inputs) -> None:
+        """Fill a missing a_x (m/s²) and missing wheel speeds (rad/s) of ``u`` in place from
+        the speed channels (see the module docstring), with state carried over chunks."""
+        n = u.t.shape[0]
+        radius = self.vehicle.body.wheel_radius
+        if not u.ax_measured:
+            ax = np.empty(n)
+            if u.omega_measured:
+                wheel_reference_speed(u.t, u.omega, u.yaw_rate, self._yw, radius,
+                                      int(self._att_prm[6]), AX_TAU[0], AX_TAU[1],
+                                      self._ax_state, ax)
+            else:
+                v, tau = ((u.vehicle_speed, AX_TAU) if u.vehicle_speed is not None
+                          else (u.gnss_speed, AX_TAU_SPARSE))
+                speed_derivative(u.t, np.ascontiguousarray(v, dtype=float), tau[0], tau[1],
+                                 self._ax_state, ax)
+            u.ax = ax
+        if not u.omega_measured:
+            if u.vehicle_speed is not None:
+                v = u.vehicle_speed
+            else:
+                v = np.empty(n)
+                speed_hold(u.t, u.gnss_speed, u.ax, self._hold_state, v)
+            u.omega = np.ascontiguousarray(np.repeat((v / radius)[:, None], 4, axis=1))
 
     def run(self, log: pd.DataFrame) -> pd.DataFrame:
         """Estimate forces over a whole log (state reset first). Returns the estimated channels."""
@@ -420,6 +617,7 @@ class ForceEstimator:
             raise LogFormatError(f"the force estimators need channel(s) {', '.join(missing)} "
                                  "in every sample")
         has_torque = _check_torques(sample, "sample")
+        has_omega = _check_speeds(sample, "sample")
         if "delta_fl" in sample and "delta_fr" in sample:
             front = (sample["delta_fl"], sample["delta_fr"])
         elif "delta" in sample:
@@ -436,14 +634,18 @@ class ForceEstimator:
 
         return Inputs(
             t=one("t", np.nan),
-            omega=np.array([[float(sample[f"omega_{c}"]) for c in CORNERS]]),
+            omega=(np.array([[float(sample[c]) for c in OMEGAS]]) if has_omega
+                   else np.full((1, 4), np.nan)),
             torque=(np.array([[float(sample[c]) for c in TORQUES]]) if has_torque
                     else np.full((1, 4), np.nan)),
-            ax=one("ax", 0.0), ay=one("ay", 0.0), az=one("az", np.nan),
+            ax=one("ax", np.nan), ay=one("ay", 0.0), az=one("az", np.nan),
             yaw_rate=one("yaw_rate", 0.0), roll_rate=one("roll_rate", np.nan),
             pitch_rate=one("pitch_rate", np.nan),
             delta=np.array([[float(front[0]), float(front[1]), 0.0, 0.0]]),
             gnss_speed=one("gnss_speed", np.nan),
             torque_measured=has_torque, az_measured="az" in sample,
             roll_rate_measured="roll_rate" in sample, pitch_rate_measured="pitch_rate" in sample,
+            vehicle_speed=(one("vehicle_speed", np.nan) if "vehicle_speed" in sample
+                           else None),
+            ax_measured="ax" in sample, omega_measured=has_omega,
         )

@@ -9,8 +9,9 @@ with f the IMU specific force rotated to the road plane by the body angles.
 
 Measurements, sequential scalar updates per sample:
 * each wheel's speed mapped to the CG, v_i = R ω_i cos δ_i − v_yt,i sin δ_i + r y_i
-  (v_yt,i from the current v_y), with a variance that grows with the evidence of
-  slip of that wheel:
+  (v_yt,i from the current v_y; a NaN ω_i is no measurement: a log without wheel speeds
+  runs on the extra CG-speed measurements alone, its lateral part unchanged), with a
+  variance that grows with the evidence of slip of that wheel:
     - its use of friction |μ_x,i| (drive or brake force per load, from the force stage),
     - ω̇ inconsistent with the acceleration, |R ω̇_i − a_x| over a 0.1 s window,
     - innovations of the sign slip produces (positive while driving, negative
@@ -53,6 +54,11 @@ class ReferenceParams:
 
     Attributes:
         q_vx, q_vy: process intensities of v_x, v_y, (m/s)²/s (IMU noise and model error).
+        q_vx_speed: q_vx where f_x is a speed's derivative (a log without ``ax``), (m/s)²/s:
+            that derivative lags by 0.1 s (wheel speeds) to 0.5 s (GNSS fixes). 0.2 (10 ×
+            q_vx): on the crossplant logs without ax its v_x RMSE is 0.080 (x07), 0.046 (x11)
+            m/s against 0.102, 0.069 at q_vx, and 0.088 against 0.73 on x07 without wheel
+            speeds either (GNSS fixes); x05, x08 without wheel speeds 0.043 against 0.033.
         q_bias: random-walk intensity of b_x, (m/s²)²/s (grade changes, bias drift).
         r_wheel: wheel-speed variance at no slip, (m/s)² (sensor noise, radius error).
         k_mu: slip-evidence gain: σ grows by k_mu·|μ_x|·|v| (m/s per unit μ_x).
@@ -103,6 +109,10 @@ class ReferenceParams:
             white CG-speed measurement, m/s (the pipeline undoes the τ_wheel/T_s inflation of
             extra measurements for it). The RAV4 log's fixes scatter by 0.077 m/s against
             the pose reference once the latency is removed.
+        sigma_vehicle_speed: one-sigma of a dense CAN ``vehicle_speed`` as a CG-speed
+            measurement, m/s, used only in a log without wheel speeds. Its error (the ESC's
+            own reference speed: radius error, quantisation) persists like a wheel's, so it
+            enters with the τ_wheel/T_s inflation of every extra measurement.
         sigma_corner_slip: one-sigma (m/s) of the fused pipeline's corner-observer CG speed,
             which enters only while ≥ 3 corners are in high slip (before the τ/T_s
             inflation). 3 m/s: with 1 m/s the corner KF's tire-model bias in moderate
@@ -144,6 +154,8 @@ class ReferenceParams:
     window: int = 20
     sigma_corner_slip: float = 3.0
     sigma_gnss: float = 0.1
+    sigma_vehicle_speed: float = 0.1
+    q_vx_speed: float = 0.2
 
 
 @dataclass(frozen=True)
@@ -411,7 +423,8 @@ def reference_kernel(t: np.ndarray, omega: np.ndarray, torque: np.ndarray, mu_x:
     ``prm`` = [q_vx, q_vy, q_bias, r_wheel, k_mu, k_acc, slip_sign, gate, r_vy, k_vy,
     bias_max, q_bias_y, bias_y_max, k_rel, gate_vy, tau_vy, s_side, tau_wheel, acc_dead, k_lat,
     q_gyro_bias, gyro_bias_sd, torque_dead, k_comb, alpha_lin, k_rel_sat, tau_vy_sat,
-    side_vy_sat, gate_vy_sat, pair_gap].
+    side_vy_sat, gate_vy_sat, pair_gap, kinematic f_x (1: f_x is v̇_x itself, from a speed's
+    derivative, so the prediction leaves out r v_y; 0: the IMU's specific force)].
     ``axle_slip`` (n, 2): front and rear axle slip angles from the lateral forces and the
     nominal cornering stiffness, rad (spec sign: atan(v_yt/v_xt)); NaN where unknown.
     ``hist`` (m, 5): last m samples of (t, ω_fl…ω_rr) for ω̇; ``state`` = [t_prev, started,
@@ -426,6 +439,7 @@ def reference_kernel(t: np.ndarray, omega: np.ndarray, torque: np.ndarray, mu_x:
     q_by, by_max, k_rel, gate_vy, tau_vy, s_side, tau_w, acc_dead, k_lat = prm[11:20]
     q_br, gyro_sd, torque_dead, k_comb = prm[20], prm[21], prm[22], prm[23]
     alpha_lin, k_rel_sat, tau_sat, side_sat, gate_sat, pair_gap = prm[24:30]
+    kin_fx = prm[30] != 0.0
     m = hist.shape[0]
     nx = x.shape[0]
     wheel_v = np.empty(4)
@@ -434,12 +448,26 @@ def reference_kernel(t: np.ndarray, omega: np.ndarray, torque: np.ndarray, mu_x:
         dt = t[k] - state[0]
         if state[1] == 0.0:
             v0 = 0.0
+            n_wheels = 0
             for i in range(4):
-                v0 += 0.25 * radius * omega[k, i]
+                if not np.isnan(omega[k, i]):
+                    v0 += 0.25 * radius * omega[k, i]
+                    n_wheels += 1
+            p_vx = 1.0
+            if n_wheels == 0:
+                # No wheel speeds: start from this sample's CG-speed measurement if any,
+                # with a σ of 10 m/s so that the first one passes the gate.
+                for j in range(extra_v.shape[1]):
+                    if not np.isnan(extra_v[k, j]):
+                        v0 = extra_v[k, j]
+                        break
+                p_vx = 100.0
+            elif n_wheels < 4:
+                v0 *= 4.0 / n_wheels
             x[:] = 0.0
             x[VX] = v0
             P[:, :] = 0.0
-            P[VX, VX] = 1.0
+            P[VX, VX] = p_vx
             P[VY, VY] = 0.25
             P[BX, BX] = 0.25
             P[BY, BY] = 0.05**2
@@ -459,7 +487,10 @@ def reference_kernel(t: np.ndarray, omega: np.ndarray, torque: np.ndarray, mu_x:
             # previous sample). The gyro bias b_r enters v_y scaled by v_x, so unlike the
             # accelerometer bias b_y it changes with speed (0.002 rad/s × 25 m/s of speed
             # change = 0.05 m/s² of v̇_y error) and is observable as the speed changes.
-            x[VX] = vx + dt * (fxp - x[BX] + rp * vy)
+            if kin_fx:  # f_x is a speed's derivative: it already holds the r v_y term
+                x[VX] = vx + dt * (fxp - x[BX])
+            else:
+                x[VX] = vx + dt * (fxp - x[BX] + rp * vy)
             x[VY] = vy + dt * (fyp - x[BY] - rp * vx)
             # The r-coupling of v_x and v_y stays out of the covariance: with a gyro bias and
             # r → 0 on a straight road it would make the lateral pseudo-measurements a
@@ -491,9 +522,16 @@ def reference_kernel(t: np.ndarray, omega: np.ndarray, torque: np.ndarray, mu_x:
         r_now = yaw_rate[k] - x[BR]
         # Wheel speeds mapped to the CG, trusted by their evidence of slip.
         accepted = 0
+        available = 0
         sq_rw = np.sqrt(r_w)
         inflate_w = max(tau_w / dt, 1.0) if dt > 0 else 1.0
         for i in range(4):
+            if np.isnan(omega[k, i]):  # no wheel speed: no measurement (a log without them)
+                out_trust[k, i] = np.inf
+                wheel_v[i] = np.nan
+                wheel_slip[i] = 0.0
+                continue
+            available += 1
             d = delta[k, i]
             c, s = (np.cos(d), np.sin(d)) if d != 0.0 else (1.0, 0.0)
             vxw = x[VX] - r_now * yw[i]
@@ -525,9 +563,9 @@ def reference_kernel(t: np.ndarray, omega: np.ndarray, torque: np.ndarray, mu_x:
         # Recovery: every wheel rejected although none shows evidence of slip means the
         # filter, not the wheels, has drifted. After ``window`` such samples, restart v_x
         # from the median wheel speed (an ESC unit's reference-speed reset).
-        state[5] = state[5] + 1.0 if accepted == 0 else 0.0
+        state[5] = state[5] + 1.0 if accepted == 0 and available > 0 else 0.0
         if state[5] >= m:
-            x[VX] = np.median(wheel_v)
+            x[VX] = np.median(wheel_v) if available == 4 else np.nanmedian(wheel_v)
             for j in range(nx):
                 P[VX, j] = 0.0
                 P[j, VX] = 0.0
@@ -622,7 +660,7 @@ class ReferenceFilter:
                               p.k_rel, p.gate_vy, p.tau_vy, p.side_vy, p.tau_wheel,
                               p.acc_dead, p.k_lat, p.q_gyro_bias, p.gyro_bias_sd,
                               p.torque_dead, p.k_comb, p.alpha_lin, p.k_rel_sat,
-                              p.tau_vy_sat, p.side_vy_sat, p.gate_vy_sat, p.pair_gap])
+                              p.tau_vy_sat, p.side_vy_sat, p.gate_vy_sat, p.pair_gap, 0.0])
         self.reset()
 
     def reset(self) -> None:
@@ -644,13 +682,20 @@ class ReferenceFilter:
                 axle_slip: np.ndarray, f_x: np.ndarray, f_y: np.ndarray, yaw_rate: np.ndarray,
                 delta: np.ndarray,
                 extra_v: np.ndarray | None = None,
-                extra_var: np.ndarray | None = None) -> dict[str, np.ndarray]:
+                extra_var: np.ndarray | None = None,
+                fx_from_speed: bool = False) -> dict[str, np.ndarray]:
         """Process a chunk; returns v (n, 2) [v_x, v_y] m/s, sigma (n, 2), bias (n, 3) [b_x, b_y]
         m/s² and b_r rad/s, trust (n, 4).
 
         ``axle_slip`` (n, 2) holds the front and rear axle slip angles −F_y/C_y in rad (NaN
         where unknown); ``extra_v``/``extra_var`` (n, m) extra CG-speed measurements, m/s
-        and (m/s)², NaN where absent.
+        and (m/s)², NaN where absent. ``fx_from_speed``: ``f_x`` is the derivative of a
+        speed (a log without ``ax``), i.e. v̇_x itself, not the specific force v̇_x − r v_y:
+        the prediction leaves out r v_y, its process intensity is ``q_vx_speed``, and the
+        slip-signed inflation is off
+        (``slip_sign`` = ∞: a wheel reading below the integral while braked is no evidence of
+        slip when the integral is the wheels' own, and inflating it would leave v_x to the
+        integral's lag).
         """
         n = t.shape[0]
         if extra_v is None or extra_var is None:
@@ -660,9 +705,15 @@ class ReferenceFilter:
         sig = np.empty((n, 2))
         bias = np.empty((n, 3))
         trust = np.empty((n, 4))
+        prm = self._prm
+        if fx_from_speed:
+            prm = prm.copy()
+            prm[6] = np.inf
+            prm[30] = 1.0
+            prm[0] = self.params.q_vx_speed
         reference_kernel(t, omega, torque, mu_x, np.ascontiguousarray(axle_slip), f_x, f_y,
                          yaw_rate, delta,
                          np.ascontiguousarray(extra_v), np.ascontiguousarray(extra_var),
-                         self.radius, self.lf, self.lr, self.xw, self.yw, self._prm, self._x,
+                         self.radius, self.lf, self.lr, self.xw, self.yw, prm, self._x,
                          self._P, self._hist, self._state, v, sig, bias, trust)
         return {"v": v, "sigma": sig, "bias": bias, "trust": trust}
