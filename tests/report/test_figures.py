@@ -1,5 +1,8 @@
 """Estimate figures: which PNG files are written, that they are valid PNGs under 300 kB,
-that missing channels skip a figure without error, and that inputs are not modified."""
+that missing channels skip a figure without error, that inputs are not modified; the
+figure conventions (one y range and one colour per corner, error strips with the known
+offsets, the score in each panel) and, for the simulation overview, that every panel's
+unit is the unit of everything drawn in it."""
 
 from __future__ import annotations
 
@@ -10,15 +13,21 @@ import matplotlib.pyplot as plt
 import numpy as np
 import pandas as pd
 import pytest
+from matplotlib.colors import to_hex
 
+from tests.report.conftest import OFFSETS, R
 from vestim.constants import CORNERS
 from vestim.errors import LogFormatError
-from vestim.report.figures import FIGURE_FILES, MAX_POINTS, _envelope, plot_estimate
-from vestim.sim import simulate
+from vestim.io import channels as ch
+from vestim.metrics import score
+from vestim.report.data import MAX_POINTS
+from vestim.report.data import envelope as _envelope
+from vestim.report.figures import FIGURE_FILES, estimate_figure, plot_estimate
+from vestim.report.plots import plot_simulation
+from vestim.report.style import CG_COLOR, CORNER_COLORS, CORNER_NAMES, REFERENCE_COLOR
 
 PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
 MAX_BYTES = 300_000  # the issue's size limit per PNG
-R = 0.33  # m, hashemi_suv wheel_radius
 
 
 def _png_size(path: Path) -> tuple[int, int]:
@@ -37,11 +46,6 @@ def _check_pngs(paths: list[Path]) -> None:
         assert 0 < size < MAX_BYTES, (p.name, size)
         width, height = _png_size(p)
         assert width > 500 and height > 300
-
-
-@pytest.fixture(scope="module")
-def sim_log() -> pd.DataFrame:
-    return simulate("step_steer", "hashemi_suv", seed=0)
 
 
 @pytest.fixture(scope="module")
@@ -153,3 +157,97 @@ def test_bad_arguments(tmp_path: Path) -> None:
         plot_estimate(estimate, wheel_radius=0.0, out_dir=tmp_path)
     with pytest.raises(LogFormatError, match="estimate: no time column 't'"):
         plot_estimate(estimate.drop(columns="t"), out_dir=tmp_path)
+
+
+def _value_axes(fig) -> dict[str, plt.Axes]:  # type: ignore[no-untyped-def]
+    """Value panel of each corner, found by its title ("front left (fl)")."""
+    out = {c: ax for ax in fig.axes for c in CORNERS if ax.get_title() == f"{CORNER_NAMES[c]} ({c})"}
+    assert set(out) == set(CORNERS)
+    return out
+
+
+def test_corner_grid_conventions(offset_estimate: pd.DataFrame, sim_log: pd.DataFrame) -> None:
+    """F_x grid of the offset estimate (F_x = truth + 100·(k+1) N at corner k, σ = 150 N):
+    the four value panels share one y range holding every corner's band and reference; each
+    corner's estimate and error are in its colour, the reference black; the error strip
+    under a panel holds the offset; the panel text gives metrics.score's NRMS and RMSE."""
+    fig = estimate_figure(offset_estimate, sim_log, "force_fx", wheel_radius=R)
+    assert fig is not None
+    try:
+        values = _value_axes(fig)
+        limits = {ax.get_ylim() for ax in values.values()}
+        assert len(limits) == 1
+        lo, hi = limits.pop()
+        for c in CORNERS:
+            est = offset_estimate[f"fx_{c}"]
+            assert lo <= est.min() - 150.0 and hi >= est.max() + 150.0
+            assert lo <= sim_log[f"ref_fx_{c}"].min() and hi >= sim_log[f"ref_fx_{c}"].max()
+        table = score(offset_estimate, sim_log).set_index("channel")
+        errors = [ax for ax in fig.axes if ax.get_ylabel() == "error [N]"]
+        assert len(errors) == 4
+        assert len({ax.get_ylim() for ax in errors}) == 1  # error strips share a range too
+        for c, ax in values.items():
+            lines = {ln.get_label(): ln for ln in ax.get_lines()}
+            assert to_hex(lines["estimate"].get_color()) == CORNER_COLORS[c].lower()
+            assert to_hex(lines["reference"].get_color()) == REFERENCE_COLOR
+            assert ax.get_ylabel() == "F_x [N]"
+            row = table.loc[f"fx_{c}"]
+            text = f"NRMS {row['nrms_pct']:.1f} %, RMSE {row['rmse']:.3g} N"
+            assert text in [t.get_text() for t in ax.texts]
+            # the strip right below the panel: same column, next row
+            strip = next(e for e in errors if e.get_position().x0 == pytest.approx(ax.get_position().x0)
+                         and e.get_position().y1 < ax.get_position().y0
+                         and ax.get_position().y0 - e.get_position().y1 < 0.1)
+            err_line = next(ln for ln in strip.get_lines() if ln.get_xydata().shape[0] > 2)
+            assert to_hex(err_line.get_color()) == CORNER_COLORS[c].lower()
+            np.testing.assert_allclose(err_line.get_ydata(), OFFSETS[f"fx_{c}"], rtol=1e-9)
+    finally:
+        plt.close(fig)
+
+
+def test_speed_figure_colours_and_error(offset_estimate: pd.DataFrame, sim_log: pd.DataFrame) -> None:
+    """R·ω per corner in the corner colours (the same as in the grids), the CG estimate in
+    CG_COLOR, and an error strip of v_x holding its 0.2 m/s offset."""
+    fig = estimate_figure(offset_estimate, sim_log, "speed", wheel_radius=R)
+    assert fig is not None
+    try:
+        main, strip = fig.axes
+        lines = {ln.get_label(): ln for ln in main.get_lines()}
+        for c in CORNERS:
+            assert to_hex(lines[f"R·ω {c}"].get_color()) == CORNER_COLORS[c].lower()
+            np.testing.assert_allclose(lines[f"R·ω {c}"].get_ydata(), R * sim_log[f"omega_{c}"])
+        assert to_hex(lines["estimate v_x (CG)"].get_color()) == CG_COLOR.lower()
+        assert main.get_ylabel() == "speed [m/s]" and strip.get_ylabel() == "error v_x [m/s]"
+        err = next(ln for ln in strip.get_lines() if ln.get_xydata().shape[0] > 2)
+        np.testing.assert_allclose(err.get_ydata(), OFFSETS["vx"], rtol=1e-9)
+    finally:
+        plt.close(fig)
+
+
+def test_simulation_panels_have_one_unit(sim_log: pd.DataFrame) -> None:
+    """Every line of the overview is one log column (or R·ω), and that column's unit is the
+    unit in its panel's y label: no panel mixes m/s², m/s and rad/s any more. Lines of one
+    corner have that corner's colour."""
+    fig = plot_simulation(sim_log, R, title="step steer")
+    try:
+        columns = {c: sim_log[c].to_numpy(dtype=float) for c in sim_log.columns}
+        columns.update({f"R·omega_{c}": R * sim_log[f"omega_{c}"].to_numpy() for c in CORNERS})
+        labelled = 0
+        for ax in fig.axes:
+            label = ax.get_ylabel()
+            assert label.endswith("]"), label
+            unit = label[label.rindex("[") + 1:-1]
+            for ln in ax.get_lines():
+                y = np.asarray(ln.get_ydata(), dtype=float)
+                match = [n for n, v in columns.items() if v.shape == y.shape and np.array_equal(v, y)]
+                assert match, (label, ln.get_label())
+                units = {"m/s" if n.startswith("R·omega_") else ch.unit_of(n) for n in match}
+                assert units == {unit}, (label, match)
+                corners = {n[-2:] for n in match}
+                if corners <= set(CORNERS):  # equal arrays (μ = 1 at every corner): any of them
+                    colours = {CORNER_COLORS[c].lower() for c in corners}
+                    assert to_hex(ln.get_color()) in colours, match
+                labelled += 1
+        assert labelled >= 30  # 4 R·ω + v_x, v_y, 4 × (slip, μ, F_x, F_y, F_z), a_x, a_y, ψ̇, steering
+    finally:
+        plt.close(fig)

@@ -1,1 +1,2 @@
-"""Figures and tables for users (PNG, Markdown)."""
+"""Figures and reports for users: PNG figures (``figures``, ``plots``), the self-contained
+HTML report (``html``), and the conventions they share (``style``, ``data``)."""

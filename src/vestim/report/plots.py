@@ -8,12 +8,13 @@ import matplotlib
 
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt
-import numpy as np
 import pandas as pd
+from matplotlib.axes import Axes
 from matplotlib.figure import Figure
 
 from vestim.constants import CORNERS
 from vestim.io.files import atomic_path
+from vestim.report.style import CG_COLOR, CORNER_COLORS, REFERENCE_COLOR
 
 
 def save_figure(fig: Figure, path: str | Path, dpi: int = 110) -> Path:
@@ -28,52 +29,68 @@ def save_figure(fig: Figure, path: str | Path, dpi: int = 110) -> Path:
 
 
 def plot_simulation(log: pd.DataFrame, wheel_radius: float, title: str = "") -> Figure:
-    """Overview of a simulated log: speeds, slip, forces, loads, IMU and steering.
+    """Overview of a simulated log in ten panels, each of one quantity and one unit.
 
-    Panels: CG speed with wheel-periphery speeds R·ω per corner (cf. 000 Fig. 11);
-    slip ratios; longitudinal and lateral tire forces; normal loads; specific
-    force and yaw rate; steering-wheel angle. Needs the ``ref_`` channels.
+    Left column: CG speed with wheel-periphery speeds R·ω per corner (cf. 000 Fig. 11)
+    [m/s]; slip ratios [-]; F_x per corner [N]; F_z per corner [N]; IMU specific force
+    a_x, a_y [m/s²]. Right column: CG lateral velocity [m/s]; road friction μ per corner
+    [-]; F_y per corner [N]; steering-wheel angle [rad] (road-wheel angles δ when the log
+    has no steering-wheel channel); yaw rate [rad/s]. Corner colours are those of
+    :data:`vestim.report.style.CORNER_COLORS`. Needs the ``ref_`` channels.
+
+    Args:
+        log: simulator log (``t`` in s, ``omega_*`` in rad/s, ``ref_`` channels).
+        wheel_radius: effective rolling radius R in m for the R·ω curves.
+        title: figure title; empty for none.
     """
     t = log["t"].to_numpy()
-    fig, axes = plt.subplots(3, 2, figsize=(12, 9), sharex=True, constrained_layout=True)
+    fig, axes = plt.subplots(5, 2, figsize=(12, 12), sharex=True, constrained_layout=True)
+
+    def corners(ax: Axes, prefix: str, ylabel: str, label: str = "") -> None:
+        for c in CORNERS:
+            ax.plot(t, log[f"{prefix}_{c}"], lw=0.9, color=CORNER_COLORS[c], label=f"{label}{c}")
+        ax.set_ylabel(ylabel)
+        ax.legend(fontsize=7, ncol=4)
+
     ax = axes[0, 0]
-    ax.plot(t, log["ref_vx"], "k", lw=2, label="ref vx (CG)")
     for c in CORNERS:
-        ax.plot(t, wheel_radius * log[f"omega_{c}"], lw=0.8, label=f"R·ω {c}")
+        ax.plot(t, wheel_radius * log[f"omega_{c}"], lw=0.8, color=CORNER_COLORS[c],
+                label=f"R·ω {c}")
+    ax.plot(t, log["ref_vx"], color=REFERENCE_COLOR, lw=2, label="ref v_x (CG)")
     ax.set_ylabel("speed [m/s]")
     ax.legend(fontsize=7, ncol=2)
     ax = axes[0, 1]
-    for c in CORNERS:
-        ax.plot(t, log[f"ref_slip_ratio_{c}"], lw=0.9, label=c)
-    ax.set_ylabel("slip ratio [-]")
-    ax.legend(fontsize=7, ncol=4)
-    ax = axes[1, 0]
-    for c in CORNERS:
-        ax.plot(t, log[f"ref_fx_{c}"], lw=0.9, label=f"Fx {c}")
-        ax.plot(t, log[f"ref_fy_{c}"], lw=0.9, ls="--", label=f"Fy {c}")
-    ax.set_ylabel("tire force [N]")
-    ax.legend(fontsize=7, ncol=2)
-    ax = axes[1, 1]
-    for c in CORNERS:
-        ax.plot(t, log[f"ref_fz_{c}"], lw=0.9, label=c)
-    ax.set_ylabel("normal load [N]")
-    ax.legend(fontsize=7, ncol=4)
-    ax = axes[2, 0]
-    ax.plot(t, log["ax"], lw=0.7, label="ax")
-    ax.plot(t, log["ay"], lw=0.7, label="ay")
-    ax.plot(t, log["ref_vy"], lw=1.2, label="ref vy [m/s]")
-    ax.plot(t, 10 * log["yaw_rate"], lw=0.7, label="10·yaw rate [rad/s]")
-    ax.set_ylabel("IMU [m/s²]")
-    ax.set_xlabel("t [s]")
-    ax.legend(fontsize=7, ncol=2)
-    ax = axes[2, 1]
-    if "steering_wheel_angle" in log:
-        ax.plot(t, log["steering_wheel_angle"], label="steering wheel [rad]")
-    mu = log[[f"ref_mu_{c}" for c in CORNERS]].to_numpy()
-    ax.plot(t, np.min(mu, axis=1), label="min μ")
-    ax.plot(t, np.max(mu, axis=1), ls="--", label="max μ")
-    ax.set_xlabel("t [s]")
+    ax.plot(t, log["ref_vy"], color=REFERENCE_COLOR, lw=1.2, label="ref v_y (CG)")
+    ax.set_ylabel("lateral velocity v_y [m/s]")
     ax.legend(fontsize=7)
+    corners(axes[1, 0], "ref_slip_ratio", "slip ratio [-]")
+    corners(axes[1, 1], "ref_mu", "road friction μ [-]")
+    corners(axes[2, 0], "ref_fx", "F_x [N]", "F_x ")
+    corners(axes[2, 1], "ref_fy", "F_y [N]", "F_y ")
+    corners(axes[3, 0], "ref_fz", "normal load F_z [N]")
+    ax = axes[3, 1]
+    if "steering_wheel_angle" in log:
+        ax.plot(t, log["steering_wheel_angle"], color=REFERENCE_COLOR, lw=0.9,
+                label="steering-wheel angle")
+        ax.set_ylabel("steering-wheel angle [rad]")
+    else:
+        for c in ("fl", "fr"):
+            if f"delta_{c}" in log:
+                ax.plot(t, log[f"delta_{c}"], lw=0.9, color=CORNER_COLORS[c], label=f"δ {c}")
+        ax.set_ylabel("road-wheel angle δ [rad]")
+    if ax.get_legend_handles_labels()[0]:
+        ax.legend(fontsize=7)
+    ax = axes[4, 0]
+    ax.plot(t, log["ax"], lw=0.7, color=CG_COLOR, label="a_x")
+    ax.plot(t, log["ay"], lw=0.7, color="0.35", label="a_y")
+    ax.set_ylabel("specific force [m/s²]")
+    ax.legend(fontsize=7, ncol=2)
+    ax = axes[4, 1]
+    ax.plot(t, log["yaw_rate"], lw=0.8, color=CG_COLOR, label="yaw rate")
+    ax.set_ylabel("yaw rate [rad/s]")
+    ax.legend(fontsize=7)
+    for a in axes[-1, :]:
+        a.set_xlabel("t [s]")
     for a in axes.flat:
         a.grid(alpha=0.3)
     if title:

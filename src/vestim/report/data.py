@@ -1,0 +1,201 @@
+"""Read-only access to an estimate and its reference, shared by the PNG figures and the HTML
+report: channel look-up, the reference on the estimate's time base, error traces, scores and
+the min/max envelope that keeps long logs small to draw.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+import pandas as pd
+
+from vestim.constants import CORNERS
+from vestim.errors import LogFormatError
+from vestim.io import channels as ch
+from vestim.metrics import channel_family, score
+
+__all__ = ["MAX_POINTS", "Logs", "band", "envelope", "peak_points"]
+
+MAX_POINTS = 2000
+"""Most points drawn per line; a longer series is drawn as its min/max envelope (1000
+buckets, about one per pixel column of a figure 1100 px wide)."""
+
+_DERIVED_REF = {"mu_x": "fx", "mu_y": "fy"}
+"""μ_x = F_x/F_z and μ_y = F_y/F_z have no ``ref_`` column in the spec; their reference is
+the ratio of the reference forces (as :func:`vestim.metrics.score` pairs them)."""
+
+
+def envelope(t: np.ndarray, y: np.ndarray, max_points: int = MAX_POINTS) -> tuple[np.ndarray, np.ndarray]:
+    """``(t, y)`` reduced to at most ``max_points`` points: each bucket's min then max.
+
+    NaN samples are ignored inside a bucket (an all-NaN bucket stays NaN, a gap). Returns
+    the inputs unchanged when they are short enough.
+    """
+    n = t.size
+    if n <= max_points:
+        return t, y
+    buckets = max_points // 2
+    starts = np.linspace(0, n, buckets, endpoint=False).astype(np.intp)
+    ends = np.append(starts[1:], n)
+    lo = np.fmin.reduceat(y, starts)
+    hi = np.fmax.reduceat(y, starts)
+    mid = (starts + ends - 1) // 2
+    tt = np.column_stack((t[starts], t[mid])).ravel()
+    yy = np.column_stack((lo, hi)).ravel()
+    return tt, yy
+
+
+def band(t: np.ndarray, y: np.ndarray, s: np.ndarray,
+         max_points: int = MAX_POINTS) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Lower and upper edge y ∓ s of a ±σ band, reduced to at most ``max_points`` points
+    (each bucket's lowest lower edge and highest upper edge, so the band only widens)."""
+    lower, upper = y - s, y + s
+    n = t.size
+    if n <= max_points:
+        return t, lower, upper
+    starts = np.linspace(0, n, max_points, endpoint=False).astype(np.intp)
+    return t[starts], np.fmin.reduceat(lower, starts), np.fmax.reduceat(upper, starts)
+
+
+def peak_points(x: np.ndarray, y: np.ndarray, max_points: int = MAX_POINTS) -> np.ndarray:
+    """Indices of at most ``max_points`` samples of the scatter (x, y) to draw, in time order.
+
+    A short series keeps every finite sample. A longer one is cut into ``max_points`` time
+    buckets and keeps, per bucket, the sample farthest from the origin, so the outline of a
+    friction circle or GG diagram (its peaks) survives the reduction.
+    """
+    finite = np.isfinite(x) & np.isfinite(y)
+    n = x.size
+    if n <= max_points:
+        return np.flatnonzero(finite)
+    r = np.where(finite, np.hypot(np.where(finite, x, 0.0), np.where(finite, y, 0.0)), -1.0)
+    starts = np.linspace(0, n, max_points, endpoint=False).astype(np.intp)
+    ends = np.append(starts[1:], n)
+    best = np.maximum.reduceat(r, starts)
+    idx = np.empty(starts.size, dtype=np.intp)
+    for k, (a, b) in enumerate(zip(starts, ends, strict=True)):
+        idx[k] = a + int(np.argmax(r[a:b] == best[k]))
+    return idx[best >= 0.0]
+
+
+class Logs:
+    """Read-only view of an estimate and its reference (``ref_`` channels) as float arrays.
+
+    ``reference=None`` uses the estimate's own ``ref_`` columns (a simulator log that also
+    carries estimates). Measured channels (``omega_*``, ``ax``, ``ay``) are taken from the
+    estimate when it has them, else from the reference log.
+    """
+
+    def __init__(self, estimate: pd.DataFrame, reference: pd.DataFrame | None) -> None:
+        self.est = estimate
+        self.ref = reference if reference is not None else estimate
+        self.t_est = self._time(self.est, "estimate")
+        self.t_ref = self._time(self.ref, "reference")
+        self._same_t = self.t_est.shape == self.t_ref.shape and np.array_equal(self.t_est, self.t_ref)
+        self._scores: dict[str, dict[str, Any]] | None = None
+
+    @staticmethod
+    def _time(df: pd.DataFrame, name: str) -> np.ndarray:
+        if ch.T not in df.columns:
+            raise LogFormatError(f"{name}: no time column 't'; add one in s")
+        return df[ch.T].to_numpy(dtype=float)
+
+    def has(self, name: str) -> bool:
+        """Whether the estimate has column ``name``."""
+        return name in self.est.columns
+
+    def estimate(self, name: str) -> np.ndarray:
+        """Estimated channel ``name`` on :attr:`t_est`."""
+        return self.est[name].to_numpy(dtype=float)
+
+    def sigma(self, name: str) -> np.ndarray | None:
+        """``sigma_<name>`` (same unit as ``name``) on :attr:`t_est`, or ``None``."""
+        col = ch.SIGMA_PREFIX + name
+        return self.est[col].to_numpy(dtype=float) if col in self.est.columns else None
+
+    def reference(self, name: str) -> np.ndarray | None:
+        """Reference of estimated channel ``name`` on :attr:`t_ref` (``ref_<name>``, or for
+        ``mu_x_<c>``/``mu_y_<c>`` the ratio ref_fx_<c>/ref_fz_<c>, ref_fy_<c>/ref_fz_<c>)."""
+        col = ch.REF_PREFIX + name
+        if col in self.ref.columns:
+            return self.ref[col].to_numpy(dtype=float)
+        family = channel_family(name)
+        if family in _DERIVED_REF and family != name:
+            corner = name[len(family) + 1:]
+            num = f"{ch.REF_PREFIX}{_DERIVED_REF[family]}_{corner}"
+            den = f"{ch.REF_PREFIX}fz_{corner}"
+            if num in self.ref.columns and den in self.ref.columns:
+                with np.errstate(divide="ignore", invalid="ignore"):
+                    ratio = self.ref[num].to_numpy(dtype=float) / self.ref[den].to_numpy(dtype=float)
+                ratio[~np.isfinite(ratio)] = np.nan  # wheel lift: F_z = 0 has no μ
+                return ratio
+        return None
+
+    def reference_at_estimate(self, name: str) -> np.ndarray | None:
+        """Reference of ``name`` on :attr:`t_est`: row by row when both logs share ``t``,
+        else linearly interpolated and NaN outside the reference's time span (never
+        extrapolated), the pairing of :func:`vestim.metrics.score`."""
+        ref = self.reference(name)
+        if ref is None:
+            return None
+        if self._same_t:
+            return ref
+        out = np.interp(self.t_est, self.t_ref, ref)
+        out[(self.t_est < self.t_ref[0]) | (self.t_est > self.t_ref[-1])] = np.nan
+        return out
+
+    def error(self, name: str) -> np.ndarray | None:
+        """Error trace estimate − reference of ``name`` on :attr:`t_est` (its unit), or ``None``
+        without an estimate or a reference."""
+        if not self.has(name):
+            return None
+        ref = self.reference_at_estimate(name)
+        return None if ref is None else self.estimate(name) - ref
+
+    def measured(self, name: str) -> tuple[np.ndarray, np.ndarray] | None:
+        """(t, values) of a measured channel from the estimate, else the reference, else ``None``."""
+        for df, t in ((self.est, self.t_est), (self.ref, self.t_ref)):
+            if name in df.columns:
+                return t, df[name].to_numpy(dtype=float)
+        return None
+
+    def wheel_speeds(self) -> tuple[np.ndarray, np.ndarray] | None:
+        """(t, ω of shape (N, 4) in rad/s) from the estimate, else the reference, else ``None``."""
+        cols = list(ch.WHEEL_SPEEDS)
+        for df, t in ((self.est, self.t_est), (self.ref, self.t_ref)):
+            if all(c in df.columns for c in cols):
+                return t, df[cols].to_numpy(dtype=float)
+        return None
+
+    def scorable(self) -> list[str]:
+        """Estimated channels that have a reference, in the spec's column order."""
+        names = [c for c in self.est.columns
+                 if isinstance(c, str) and c != ch.T
+                 and not c.startswith((ch.REF_PREFIX, ch.SIGMA_PREFIX))
+                 and self.reference(c) is not None]
+        return ch.canonical_order(names)
+
+    def scores(self) -> dict[str, dict[str, Any]]:
+        """The :func:`vestim.metrics.score` row of every scorable channel, by channel name
+        (empty without a reference). Computed once."""
+        if self._scores is None:
+            names = self.scorable()
+            table = score(self.est, self.ref, channels=names) if names else None
+            self._scores = ({} if table is None else
+                            {str(r["channel"]): {str(k): v for k, v in r.items()}
+                             for r in table.to_dict(orient="records")})
+        return self._scores
+
+    def score_text(self, name: str) -> str:
+        """``"NRMS 3.2 %, RMSE 0.12 m/s"`` for a scored channel (``*``: floor used), else ``""``."""
+        row = self.scores().get(name)
+        if row is None or not np.isfinite(row["nrms_pct"]):
+            return ""
+        star = "*" if bool(row["floored"]) else ""
+        unit = f" {row['unit']}" if row["unit"] not in ("", "-") else ""
+        return f"NRMS {row['nrms_pct']:.1f} %{star}, RMSE {row['rmse']:.3g}{unit}"
+
+    def corners_with(self, prefix: str) -> list[str]:
+        """Corners whose ``<prefix>_<corner>`` the estimate has."""
+        return [c for c in CORNERS if self.has(f"{prefix}_{c}")]
