@@ -1,14 +1,18 @@
 """Reproduce the simulation study of 002 Sec. VI-A (Figs. 4–6) with Algorithm 1 and its baselines.
 
 Run:  .venv/bin/python benchmarks/study_002.py [--runs 50] [--fig5-runs 20] [--jobs 16]
-                                                [--out DIR] [--quick]
+                                                [--scheduler ADDR] [--out DIR] [--quick]
 
-``--jobs`` runs the Monte-Carlo runs in that many worker processes (one Numba
-thread each); the results do not depend on it (every run has its own fixed
-seed, results are assembled in seed order). ``--out DIR`` writes the figures
-and ``results_stiffness.md`` into DIR (default: figures to docs/figures and the
-tables to docs/results_stiffness.md, keeping its hand-written summary), so the
-study can run in a copy of the tree.
+The Monte-Carlo runs go through the Dask task map of ``vestim batch``
+(:func:`vestim.batch.open_runner`): ``--jobs N`` (N > 1) starts a local cluster
+of N worker processes (one thread, one Numba thread each), ``--scheduler
+tcp://host:port`` uses a running Dask cluster (its workers must import this
+script as ``study_002``, i.e. have ``benchmarks/`` on their path), and
+``--jobs 1`` runs in this process. The results do not depend on it (every run
+has its own fixed seed and numpy Generator, results are assembled in seed
+order). ``--out DIR`` writes the figures and ``results_stiffness.md`` into DIR
+(default: figures to docs/figures and the tables to docs/results_stiffness.md,
+keeping its hand-written summary), so the study can run in a copy of the tree.
 
 Settings (002 Sec. VI-A): the ``stiffness_study`` maneuver (square-wave steering
 of period 4 s and wheel torque of period 5 s, x0 = [22, 0, 0], 50 % stiffness
@@ -58,10 +62,10 @@ scripts; nothing here is a test.
 from __future__ import annotations
 
 import argparse
+import importlib
 import os
 import time
 from collections.abc import Callable, Iterable
-from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any
@@ -75,6 +79,7 @@ import matplotlib.pyplot as plt
 import numpy as np
 import pandas as pd
 
+from vestim.batch import SYNCHRONOUS, TaskRunner, open_runner
 from vestim.constants import G
 from vestim.estimators.stiffness import (
     AugmentedEKF,
@@ -298,16 +303,21 @@ def vy_rmse_job(kind: str, seed: int, method: str, particles: int, augpf_walk: f
     return float(r["vy_rmse"])
 
 
-def run_jobs(pool: ProcessPoolExecutor | None, fn: Callable[..., Any],
+def by_name(fn: Callable[..., Any]) -> Callable[..., Any]:
+    """``fn`` as a function of the importable module ``study_002`` (it then travels to the Dask
+    workers by name, and their module-level caches live as long as the worker)."""
+    if fn.__module__ != "__main__":
+        return fn
+    return getattr(importlib.import_module("study_002"), fn.__name__)
+
+
+def run_jobs(runner: TaskRunner, fn: Callable[..., Any],
              jobs: Iterable[tuple[Any, ...]]) -> list[Any]:
-    """``fn(*job)`` for every job, in order; in the worker processes when ``pool`` is given."""
-    if pool is None:
-        return [fn(*job) for job in jobs]
-    futures = [pool.submit(fn, *job) for job in jobs]
-    return [f.result() for f in futures]
+    """``fn(*job)`` for every job, results in job order; on the Dask workers of ``runner``."""
+    return runner.map(fn if runner.client is None else by_name(fn), jobs, star=True)
 
 
-def tune_augpf(pool: ProcessPoolExecutor | None, quick: bool) -> tuple[float, list[tuple[float, float]]]:
+def tune_augpf(pool: TaskRunner, quick: bool) -> tuple[float, list[tuple[float, float]]]:
     """Pick the AUGPF mean random walk with the smallest v_y RMSE on separate tuning seeds (002)."""
     seeds = list(TUNING_SEEDS)[: 2 if quick else None]
     jobs = [(kind, s, "augpf", 500, walk) for walk in AUGPF_WALKS for kind in ("dt-magic", "st")
@@ -444,7 +454,9 @@ def main() -> None:
     ap.add_argument("--lugre-runs", type=int, default=5)
     ap.add_argument("--full-runs", type=int, default=10)
     ap.add_argument("--bias-runs", type=int, default=20, help="runs of st-bias (Algorithm 1 only)")
-    ap.add_argument("--jobs", type=int, default=1, help="worker processes")
+    ap.add_argument("--jobs", type=int, default=1, help="worker processes of a local Dask cluster")
+    ap.add_argument("--scheduler", default=None,
+                    help="address of a running Dask scheduler (default: local, see --jobs)")
     ap.add_argument("--out", type=Path, default=None,
                     help="directory for the figures and results_stiffness.md (default: docs/)")
     ap.add_argument("--quick", action="store_true", help="a few runs, for a smoke test")
@@ -455,8 +467,9 @@ def main() -> None:
     md_path = (args.out if args.out is not None else ROOT / "docs") / "results_stiffness.md"
     fig_dir.mkdir(parents=True, exist_ok=True)
     t_start = time.time()
-    pool = ProcessPoolExecutor(max_workers=args.jobs) if args.jobs > 1 else None
-    try:
+    scheduler = args.scheduler or (None if args.jobs > 1 else SYNCHRONOUS)
+    with open_runner(scheduler, n_workers=args.jobs) as pool:
+        workers = pool.n_workers
         print("AUGPF tuning (002: the random walk that minimises the RMSE):", flush=True)
         walk, tuning = tune_augpf(pool, args.quick)
         plan = {"st": args.runs, "dt-magic": args.runs, "dt-lugre": args.lugre_runs,
@@ -483,9 +496,6 @@ def main() -> None:
         sweep = [(kind, s, m, n, walk) for kind in ("st", "dt-magic") for n in COUNTS if n != 500
                  for m in ("pf", "augpf") for s in range(args.fig5_runs)]
         sweep_rmse = dict(zip(sweep, run_jobs(pool, vy_rmse_job, sweep), strict=True))
-    finally:
-        if pool is not None:
-            pool.shutdown()
     for kind in ("st", "dt-magic"):
         curves[kind] = {"pf": [], "augpf": []}
         for n in COUNTS:
@@ -506,7 +516,7 @@ def main() -> None:
     fig5(curves, fig_dir / "stiffness_fig5.png")
     fig6({k: all_results[k] for k in ("st", "dt-magic")}, fig_dir / "stiffness_fig6.png")
     write_markdown(md_path, all_results, plan, curves, mismatch, tuning, walk,
-                   time.time() - t_start, args.jobs)
+                   time.time() - t_start, workers)
     print(f"done in {time.time() - t_start:.0f} s; tables in {md_path}, figures in {fig_dir}")
 
 

@@ -3,9 +3,12 @@
 from vestim.estimators.friction.potential import (
     FrictionParams,
     corner_kx,
+    friction_columns,
     friction_kernel,
     friction_params,
     invert_shape,
+    output_names,
 )
 
-__all__ = ["FrictionParams", "corner_kx", "friction_kernel", "friction_params", "invert_shape"]
+__all__ = ["FrictionParams", "corner_kx", "friction_columns", "friction_kernel", "friction_params",
+           "invert_shape", "output_names"]

@@ -43,6 +43,7 @@ docs/methods.md:
 from __future__ import annotations
 
 import math
+from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import Any
 
@@ -184,3 +185,49 @@ def friction_kernel(t: np.ndarray, mu_x: np.ndarray, mu_y: np.ndarray, sigma_u: 
                 mu[k, c], sigma_mu[k, c], excited[k, c] = m, sm, 1.0
             else:
                 mu[k, c], sigma_mu[k, c], excited[k, c] = np.nan, np.nan, 0.0
+
+
+CORNER_NAMES = ("fl", "fr", "rl", "rr")
+
+
+def output_names() -> list[str]:
+    """Columns this stage writes: ``mu_<c>``, ``sigma_mu_<c>``, ``mu_<c>_excited`` per corner."""
+    return [*(f"mu_{c}" for c in CORNER_NAMES), *(f"sigma_mu_{c}" for c in CORNER_NAMES),
+            *(f"mu_{c}_excited" for c in CORNER_NAMES)]
+
+
+def friction_columns(est: Mapping[str, Any], kx: np.ndarray, prm: np.ndarray,
+                     state: np.ndarray) -> dict[str, np.ndarray]:
+    """Run :func:`friction_kernel` on estimate columns (arrays or scalars of one sample).
+
+    Args:
+        est: the force and velocity stages' channels: ``t``, ``cornering_stiffness`` and per
+            corner ``mu_x_*``, ``mu_y_*``, ``sigma_fx_*``, ``sigma_fy_*``, ``fz_*``,
+            ``slip_ratio_*``, ``slip_angle_*``.
+        kx: :func:`corner_kx`; prm: :func:`friction_params`; state: (4,), carried on.
+
+    Returns:
+        The columns of :func:`output_names`, each of the input's length.
+    """
+    def block(prefix: str) -> np.ndarray:
+        return np.ascontiguousarray(np.column_stack(
+            [np.atleast_1d(np.asarray(est[f"{prefix}_{c}"], dtype=np.float64))
+             for c in CORNER_NAMES]))
+
+    t = np.atleast_1d(np.asarray(est["t"], dtype=np.float64))
+    fz = np.maximum(block("fz"), 1.0)
+    sigma_u = np.hypot(block("sigma_fx"), block("sigma_fy")) / fz
+    ky = np.ascontiguousarray(np.broadcast_to(
+        np.atleast_1d(np.asarray(est["cornering_stiffness"], dtype=np.float64)), t.shape))
+    n = t.shape[0]
+    mu, smu, ex = np.empty((n, 4)), np.empty((n, 4)), np.empty((n, 4))
+    friction_kernel(t, block("mu_x"), block("mu_y"), sigma_u, block("slip_ratio"),
+                    block("slip_angle"), ky, kx, prm, state, mu, smu, ex)
+    out: dict[str, np.ndarray] = {}
+    for j, c in enumerate(CORNER_NAMES):
+        out[f"mu_{c}"] = mu[:, j]
+    for j, c in enumerate(CORNER_NAMES):
+        out[f"sigma_mu_{c}"] = smu[:, j]
+    for j, c in enumerate(CORNER_NAMES):
+        out[f"mu_{c}_excited"] = ex[:, j]
+    return out
