@@ -98,6 +98,10 @@ ESTIMATED: tuple[str, ...] = (
 )
 """Estimator outputs: reference names without ``ref_``, plus mu_x_* = Fx/Fz and mu_y_* = Fy/Fz."""
 
+MAY_BE_UNKNOWN: tuple[str, ...] = (*corner_columns("mu"), *corner_columns("sigma_mu"))
+"""Estimates that are NaN where the data cannot tell them (the road friction potential where
+a tire uses too little of it: :mod:`vestim.estimators.friction`); inf is still an error."""
+
 SIGMA_PREFIX = "sigma_"
 """``sigma_<name>`` is the one-sigma uncertainty of ``<name>``, in ``<name>``'s unit."""
 

@@ -397,7 +397,8 @@ def _check_structure(df: pd.DataFrame, *, source: str) -> np.ndarray:
             continue
         v = t if name == ch.T else _floats(s)
         # A sparse channel is NaN between its own samples; inf or a negative speed is not.
-        bad = (np.isinf(v) | (v < 0)) if name in ch.SPARSE else ~np.isfinite(v)
+        bad = ((np.isinf(v) | (v < 0)) if name in ch.SPARSE
+               else np.isinf(v) if name in ch.MAY_BE_UNKNOWN else ~np.isfinite(v))
         if bad.any():
             i = int(bad.argmax())
             if first_bad is None or i < first_bad[0]:

@@ -59,6 +59,7 @@ from vestim.estimators.force.estimator import (
     normalised,
 )
 from vestim.estimators.force.longitudinal import METHODS as FORCE_METHODS
+from vestim.estimators.friction import FrictionParams, corner_kx, friction_params, friction_potential
 from vestim.estimators.fusion import FUSION_METHODS, FusionParams, confidences, fuse
 from vestim.estimators.velocity.corner import CornerVelocityEstimator, CornerVelocityInput
 from vestim.estimators.velocity.kinematic import KinematicIntegrator
@@ -122,6 +123,7 @@ class PipelineConfig:
         cornering: the online cornering-stiffness regression of its v_y bounds.
         radius: the online wheel-radius scale from ``gnss_speed`` (logs that have it).
         fusion_params: parameters of the fusion stage.
+        friction: the road-friction-potential stage (:mod:`vestim.estimators.friction`).
         gains: path of a gains file from ``vestim design lpv`` for the "lpv" observers
             (default: 001's constant gains).
     """
@@ -134,6 +136,7 @@ class PipelineConfig:
     cornering: StiffnessParams = field(default_factory=StiffnessParams)
     radius: RadiusParams = field(default_factory=RadiusParams)
     fusion_params: FusionParams = field(default_factory=FusionParams)
+    friction: FrictionParams = field(default_factory=FrictionParams)
     gains: str | None = None
 
     def __post_init__(self) -> None:
@@ -158,7 +161,7 @@ class PipelineConfig:
         if not isinstance(table, dict):
             raise PipelineConfigError(f"{path}: no [pipeline] table")
         allowed = {f.name for f in fields(cls)} - {"reference", "fusion_params", "cornering",
-                                                "radius"}
+                                                "radius", "friction"}
         unknown = sorted(set(table) - allowed)
         if unknown:
             raise PipelineConfigError(f"{path}: [pipeline] has unknown key(s) {', '.join(unknown)};"
@@ -197,6 +200,9 @@ class Pipeline:
         self._radius_prm = radius_params(self.config.radius, b.wheel_radius)
         self._radius_state = np.zeros(9)
         self._t_gnss = np.nan  # time of the previous sample, for the GNSS fixes' weight
+        self._friction_prm = friction_params(self.config.friction)
+        self._friction_kx = corner_kx(vehicle, self.config.friction)
+        self._friction_state = np.full(4, np.nan)
         self.force = ForceEstimator(vehicle, ForceConfig(longitudinal=self.config.force,
                                                          normal=self.config.normal))
         self.reference = ReferenceFilter(b.wheel_radius, b.lf, b.lr, self._xw, self._yw,
@@ -228,6 +234,7 @@ class Pipeline:
         self._prev = np.array([np.nan, 0.0])
         self._stiff_state[:] = 0.0
         self._radius_state[:] = 0.0
+        self._friction_state[:] = np.nan
         self._t_gnss = np.nan
         self._fused_is_reference = True
         self._step_args = None
@@ -398,11 +405,17 @@ class Pipeline:
             slip_ratio = np.full_like(slip_ratio, np.nan)
             scale = np.full(n, np.nan)
             latency = np.full(n, np.nan)
+        slip_angle = kin.slip_angle(vxt, vyt)
         res.update({"v": v, "sigma_v": sig, "bias": bias, "vx_i": vx_i, "vy_i": vy_i,
                     "cornering_stiffness": c_y, "radius_scale": scale,
                     "gnss_latency": latency,
                     "vxt": vxt, "vyt": vyt,
-                    "slip_ratio": slip_ratio, "slip_angle": kin.slip_angle(vxt, vyt)})
+                    "slip_ratio": slip_ratio, "slip_angle": slip_angle})
+        res["mu"], res["sigma_mu"], res["mu_excited"] = friction_potential(
+            u.t, res["fx"], res["fy"], res["fz"], res["sigma_fx"], res["sigma_fy"], slip_ratio,
+            slip_angle, np.fmax(sig[:, 1], self.config.friction.sigma_vy_floor)
+            / np.maximum(np.abs(v[:, 0]), 1.0), c_y, self._friction_kx,
+            self._friction_prm, self._friction_state)
         return res
 
     @staticmethod
@@ -429,6 +442,8 @@ class Pipeline:
                            np.column_stack((res["radius_scale"], res["gnss_latency"]))))
         if "confidence" in res:
             groups.append((names("confidence"), res["confidence"]))
+        groups += [(names("mu"), res["mu"]), (names("sigma_mu"), res["sigma_mu"]),
+                   ([f"mu_{c}_excited" for c in CORNERS], res["mu_excited"])]
         return groups
 
     def run(self, log: pd.DataFrame, chunk: int = CHUNK) -> pd.DataFrame:
@@ -503,6 +518,17 @@ class Pipeline:
         row = dict(zip(self._step_names, out.tolist(), strict=True))
         row["radius_scale"] = 1.0  # no gnss_speed on this path
         row["gnss_latency"] = 0.0
+        one = lambda q: np.array([[row[f"{q}_{c}"] for c in CORNERS]])  # noqa: E731
+        mu, smu, ex = friction_potential(
+            np.array([row["t"]]), one("fx"), one("fy"), one("fz"), one("sigma_fx"),
+            one("sigma_fy"), one("slip_ratio"), one("slip_angle"),
+            np.array([np.fmax(row["sigma_vy"], self.config.friction.sigma_vy_floor)
+                      / max(abs(row["vx"]), 1.0)]),
+            np.array([row["cornering_stiffness"]]), self._friction_kx, self._friction_prm,
+            self._friction_state)
+        for j, c in enumerate(CORNERS):
+            row[f"mu_{c}"], row[f"sigma_mu_{c}"] = float(mu[0, j]), float(smu[0, j])
+            row[f"mu_{c}_excited"] = float(ex[0, j])
         return row
 
 

@@ -46,7 +46,7 @@ def _run(u_x, u_y, slip_ratio, slip_angle, ky=20.0, kx=20.0, sigma_u=0.01, p=Non
     smu = np.empty((n, 4))
     ex = np.empty((n, 4))
     friction_kernel(t, col(u_x), col(u_y), col(np.full(n, sigma_u)), col(slip_ratio),
-                    col(slip_angle), np.full(n, ky), np.full(4, kx), friction_params(p),
+                    col(slip_angle), np.zeros(n), np.full(n, ky), np.full(4, kx), friction_params(p),
                     np.full(4, np.nan), mu, smu, ex)
     return mu[:, 0], smu[:, 0], ex[:, 0]
 

@@ -3,12 +3,12 @@
 from vestim.estimators.friction.potential import (
     FrictionParams,
     corner_kx,
-    friction_columns,
     friction_kernel,
     friction_params,
+    friction_potential,
     invert_shape,
     output_names,
 )
 
-__all__ = ["FrictionParams", "corner_kx", "friction_columns", "friction_kernel", "friction_params",
+__all__ = ["FrictionParams", "corner_kx", "friction_kernel", "friction_params", "friction_potential",
            "invert_shape", "output_names"]
