@@ -105,3 +105,57 @@ def test_estimate_stiffness_pf_writes_stiffness_channels(tmp_path):
                 "vx", "vy", "yaw_rate"):
         assert col in est.columns
     assert est["stiffness_cy_f"].gt(0).all()
+
+
+def _short_log(tmp_path, name="log.parquet"):
+    from vestim.io import load_vehicle, write_log
+    from vestim.sim import get_maneuver, simulate
+
+    log = simulate(get_maneuver("step_steer"), load_vehicle("hashemi_suv"), seed=0).iloc[:300]
+    return write_log(log, tmp_path / name)
+
+
+def test_estimate_refuses_to_overwrite_its_input(tmp_path):
+    """`--out` equal to the input (also spelled differently) is refused before any work, and
+    the input is left byte-identical."""
+    src = _short_log(tmp_path)
+    before = src.read_bytes()
+    for out in (src, tmp_path / "." / "log.parquet"):
+        result = runner.invoke(app, ["estimate", str(src), "--out", str(out)])
+        assert result.exit_code == 2
+        assert "is the input" in result.output
+    assert src.read_bytes() == before
+
+
+def test_output_extension_is_checked_before_the_work(tmp_path, monkeypatch):
+    """A wrong --out extension fails at once: the pipeline is never built."""
+    import vestim.pipeline
+
+    def boom(*_a, **_k):
+        raise AssertionError("the pipeline ran before the output path was checked")
+
+    monkeypatch.setattr(vestim.pipeline, "Pipeline", boom)
+    src = _short_log(tmp_path)
+    result = runner.invoke(app, ["estimate", str(src), "--out", str(tmp_path / "est.xlsx")])
+    assert result.exit_code == 2
+    assert "unsupported extension '.xlsx'" in result.output
+
+
+def test_first_run_says_it_compiles(tmp_path, monkeypatch):
+    from vestim import _cache
+
+    monkeypatch.setattr(_cache, "is_cold", lambda: True)
+    src = _short_log(tmp_path)
+    result = runner.invoke(app, ["estimate", str(src), "--out", str(tmp_path / "est.parquet")])
+    assert result.exit_code == 0, result.output
+    assert "compiling vestim's kernels" in result.output
+
+
+def test_cache_is_cold_until_numba_writes_an_index(tmp_path, monkeypatch):
+    from vestim import _cache
+
+    monkeypatch.setenv("NUMBA_CACHE_DIR", str(tmp_path / "cache"))
+    assert _cache.is_cold()
+    (tmp_path / "cache" / "x").mkdir(parents=True)
+    (tmp_path / "cache" / "x" / "k.nbi").write_bytes(b"")
+    assert not _cache.is_cold()

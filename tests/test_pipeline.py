@@ -214,3 +214,17 @@ def test_cli_estimate_fusion_flag(tmp_path, log):
     assert est.attrs["fusion"] == "opinion"
     bad = CliRunner().invoke(app, ["estimate", str(src), "--out", str(out), "--fusion", "vote"])
     assert bad.exit_code == 2 and "fusion method 'vote'" in bad.output
+
+
+def test_run_reports_progress_and_the_result_does_not_depend_on_it():
+    """progress(fraction) after each chunk: increasing, ending at exactly 1; same output."""
+    from vestim.io import load_vehicle
+    from vestim.sim import get_maneuver, simulate
+
+    veh = load_vehicle("hashemi_suv")
+    log = simulate(get_maneuver("step_steer"), veh, seed=0).iloc[:1000]
+    seen: list[float] = []
+    a = Pipeline(veh).run(log, chunk=300, progress=seen.append)
+    b = Pipeline(veh).run(log, chunk=300)
+    assert seen == [0.3, 0.6, 0.9, 1.0]
+    np.testing.assert_array_equal(a.to_numpy(), b.to_numpy())

@@ -8,29 +8,26 @@ from __future__ import annotations
 
 import time
 from pathlib import Path
-from typing import Annotated
+from typing import TYPE_CHECKING, Annotated, Any
 
-import numpy as np
 import rich.markup
 import typer
 from rich.console import Console
 from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
-from rich.table import Table
 
 from vestim.errors import VestimError
-from vestim.io import load_vehicle, read_log, write_log
-from vestim.metrics import score, to_json, to_markdown
-from vestim.pipeline import Pipeline, PipelineConfig
-from vestim.report.figures import plot_estimate
-from vestim.report.plots import plot_simulation, save_figure
-from vestim.sim import DEFAULT_SET, SensorModel, get_maneuver, maneuver_names, simulate
-from vestim.sim.maneuvers import Maneuver, describe
+
+if TYPE_CHECKING:
+    from vestim.sim.maneuvers import Maneuver
+
+# The commands import what they use: `vestim --help` and `--version` start in a fraction of a
+# second instead of loading numba, pandas, scipy and matplotlib (about 1.6 s).
 
 # rich_markup_mode=None: help text is printed as written; Rich markup would delete every
 # bracketed word ("a [pipeline] table" read "a  table").
 app = typer.Typer(add_completion=False, no_args_is_help=True, rich_markup_mode=None,
                   help="Corner-based vehicle state and tire-force estimation.")
-console = Console(stderr=True)
+console = Console(stderr=True, soft_wrap=True)  # messages stay one line (grep-able)
 
 
 def _version(value: bool) -> None:
@@ -52,6 +49,49 @@ VehicleOpt = Annotated[str, typer.Option("--vehicle", help="Vehicle TOML file or
                                          "(hashemi_suv, compact_car).")]
 
 
+LOG_SUFFIXES = (".csv", ".parquet", ".pq")
+PROGRESS_AFTER_S = 2.0
+"""A run shows a progress bar once it has taken this long (shorter runs stay quiet)."""
+
+
+class _Progress:
+    """A Rich progress bar that appears only for runs longer than :data:`PROGRESS_AFTER_S`."""
+
+    def __init__(self, label: str) -> None:
+        self._label = label
+        self._t0 = time.perf_counter()
+        self._bar: Progress | None = None
+        self._task: Any = None
+
+    def __call__(self, fraction: float) -> None:
+        if self._bar is None:
+            if time.perf_counter() - self._t0 < PROGRESS_AFTER_S or not console.is_terminal:
+                return
+            self._bar = Progress(TextColumn("{task.description}"), BarColumn(),
+                                 TextColumn("{task.percentage:>3.0f} %"), TimeElapsedColumn(),
+                                 console=console, transient=True)
+            self._bar.start()
+            self._task = self._bar.add_task(self._label, total=1.0)
+        self._bar.update(self._task, completed=fraction)
+
+    def __enter__(self) -> _Progress:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        if self._bar is not None:
+            self._bar.stop()
+
+
+def _note_compiling() -> None:
+    """Say so when this run compiles the kernels (first run, or a new vestim/Numba)."""
+    from vestim import _cache
+
+    if _cache.is_cold():
+        console.print(rich.markup.escape(
+            "compiling vestim's kernels for this machine (first run only, about 10-60 s); "
+            f"later runs load them from {_cache.cache_dir()}"))
+
+
 def _fail(exc: Exception) -> typer.Exit:
     # escape: a message naming an extra ("vestim[report]") is not Rich markup
     console.print(f"[red]error:[/red] {rich.markup.escape(str(exc))}")
@@ -60,6 +100,9 @@ def _fail(exc: Exception) -> typer.Exit:
 
 def _run(m: Maneuver, vehicle: str, seed: int, rate: float, label: str):  # type: ignore[no-untyped-def]
     """Simulate with a progress bar on the terminal (hidden when not interactive)."""
+    from vestim.io import load_vehicle
+    from vestim.sim import SensorModel, simulate
+
     veh = load_vehicle(vehicle)
     with Progress(TextColumn("{task.description}"), BarColumn(), TimeElapsedColumn(),
                   console=console, transient=True, disable=not console.is_terminal) as bar:
@@ -72,6 +115,9 @@ def _run(m: Maneuver, vehicle: str, seed: int, rate: float, label: str):  # type
 @app.command("maneuvers")
 def maneuvers_cmd() -> None:
     """List the maneuver library, one per line, name first."""
+    from vestim.sim import maneuver_names
+    from vestim.sim.maneuvers import describe
+
     for name in maneuver_names():
         typer.echo(f"{name}\t{describe(name)}")
 
@@ -92,7 +138,12 @@ def simulate_cmd(
     rate: Annotated[float, typer.Option(help="Sensor sampling rate, Hz.")] = 200.0,
 ) -> None:
     """Simulate a maneuver and write a spec log with every measured and ref_ channel."""
+    from vestim.io import write_log
+    from vestim.io.files import check_output_path
+    from vestim.sim import get_maneuver
+
     try:
+        check_output_path(out, suffixes=LOG_SUFFIXES)
         m = get_maneuver(name, mu=mu, v0=v0, drivetrain=drivetrain, tire=tire, tc=tc, abs_=abs_)
         t0 = time.perf_counter()
         _, log = _run(m, vehicle, seed, rate, f"simulating {name}")
@@ -108,13 +159,14 @@ def estimate_cmd(
     log_path: Annotated[Path, typer.Argument(metavar="LOG", help="Drive log (.csv or .parquet).")],
     out: Annotated[Path, typer.Option("--out", help="Output log of estimates (.csv or .parquet).")],
     vehicle: VehicleOpt = "hashemi_suv",
-    velocity: Annotated[str, typer.Option(help="Velocity stage: fused (default) | reference | "
-                                          "kinematic | kf | ukf | lpv.")] = PipelineConfig.velocity,
-    fusion: Annotated[str, typer.Option(help="Corner-to-CG fusion: axle | adaptive | opinion "
-                                        "(writes confidence_*).")] = PipelineConfig.fusion,
-    force: Annotated[str, typer.Option(help="Longitudinal force: ukf | ukf_rw | pid | uio | "
-                                       "naive.")] = PipelineConfig.force,
-    normal: Annotated[str, typer.Option(help="Load transfer: static | dynamic.")] = PipelineConfig.normal,
+    velocity: Annotated[str | None, typer.Option(help="Velocity stage: fused (default) | reference | "
+                                          "kinematic | kf | ukf | lpv.")] = None,
+    fusion: Annotated[str | None, typer.Option(help="Corner-to-CG fusion: axle (default) | "
+                                               "adaptive | opinion (writes confidence_*).")] = None,
+    force: Annotated[str | None, typer.Option(help="Longitudinal force: ukf (default) | ukf_rw | "
+                                              "pid | uio | naive.")] = None,
+    normal: Annotated[str | None, typer.Option(help="Load transfer: static (default) | "
+                                               "dynamic.")] = None,
     gains: Annotated[Path | None, typer.Option(help="Gains file of `vestim design lpv` for "
                                                "--velocity lpv.")] = None,
     config: Annotated[Path | None, typer.Option(help="TOML file with a [pipeline] table "
@@ -136,23 +188,30 @@ def estimate_cmd(
         return
     if method != "pipeline":
         raise _fail(ValueError(f"method {method!r}: use pipeline or stiffness-pf"))
+    import json
+
+    from vestim.io import check_log, load_vehicle, read_log, write_log
+    from vestim.io.files import check_output_path
+    from vestim.pipeline import Pipeline, PipelineConfig
+
     try:
+        check_output_path(out, inputs=[log_path, map_path, config, gains], suffixes=LOG_SUFFIXES)
         veh = load_vehicle(vehicle)
+        stages: dict[str, Any] = {k: v for k, v in (("force", force), ("normal", normal),
+                                                    ("velocity", velocity), ("fusion", fusion))
+                                  if v is not None}
         cfg = (PipelineConfig.from_toml(config) if config is not None
-               else PipelineConfig(force=force, normal=normal, velocity=velocity, fusion=fusion,
-                                   gains=str(gains) if gains else None))
+               else PipelineConfig(**stages, gains=str(gains) if gains else None))
         log = (read_log(log_path, require=["measured"], wheel_radius=veh.body.wheel_radius)
                if map_path is None else _import_for_estimate(log_path, map_path,
                                                              veh.body.wheel_radius))
         # Cross-channel checks (docs/input-checks.md): errors exit 2, warnings are kept.
-        import json
-
-        from vestim.io import check_log
-
         warnings = check_log(log, veh, source=str(log_path))
         t0 = time.perf_counter()
+        _note_compiling()
         pipe = Pipeline(veh, cfg)
-        est = pipe.run(log)
+        with _Progress(f"estimating {log_path.name}") as progress:
+            est = pipe.run(log, progress=progress)
         meta = {"vehicle": veh.name, "force": cfg.force, "normal": cfg.normal,
                 "velocity": cfg.velocity, "fusion": cfg.fusion, "source": str(log_path),
                 **pipe.force.input_sources,
@@ -186,10 +245,14 @@ def estimate_cmd(
 def _estimate_stiffness(log_path: Path, out: Path, vehicle: str, particles: int,
                         seed: int) -> None:
     from vestim.estimators.stiffness import estimate_stiffness
+    from vestim.io import load_vehicle, read_log, write_log
+    from vestim.io.files import check_output_path
 
     try:
+        check_output_path(out, inputs=[log_path], suffixes=LOG_SUFFIXES)
         veh = load_vehicle(vehicle)
         log = read_log(log_path)
+        _note_compiling()
         t0 = time.perf_counter()
         est = estimate_stiffness(log, veh, particles=particles, seed=seed)
         path = write_log(est, out, metadata={"vehicle": veh.name, "method": "stiffness-pf",
@@ -223,9 +286,12 @@ def import_cmd(
     out: Annotated[Path, typer.Option("--out", help="Drive log to write (.csv or .parquet).")],
 ) -> None:
     """Convert a raw recording into a drive log through a channel map (units, frames, rates)."""
+    from vestim.io import write_log
     from vestim.io.channel_map import describe_report, import_log
+    from vestim.io.files import check_output_path
 
     try:
+        check_output_path(out, inputs=[src, map_path], suffixes=LOG_SUFFIXES)
         log, report = import_log(src, map_path)
         path = write_log(log, out, metadata=report.metadata())
     except (VestimError, ValueError, OSError) as exc:
@@ -244,6 +310,9 @@ def score_cmd(
     json_out: Annotated[bool, typer.Option("--json", help="Print JSON instead of a table.")] = False,
 ) -> None:
     """NRMS (000's definition), RMSE and max error per channel against the ref_ channels."""
+    from vestim.io import read_log
+    from vestim.metrics import score, to_json, to_markdown
+
     try:
         table = score(read_log(estimate), read_log(reference), estimate_name=str(estimate),
                       reference_name=str(reference))
@@ -261,6 +330,9 @@ def plot_cmd(
     vehicle: VehicleOpt = "hashemi_suv",
 ) -> None:
     """Draw the papers' figure types (speeds with wheel speeds, CG and corner velocities, forces)."""
+    from vestim.io import load_vehicle, read_log
+    from vestim.report.figures import plot_estimate
+
     try:
         veh = load_vehicle(vehicle)
         files = plot_estimate(read_log(estimate), read_log(reference) if reference else None,
@@ -282,9 +354,12 @@ def report_cmd(
     title: Annotated[str | None, typer.Option(help="Page title.")] = None,
 ) -> None:
     """Write one self-contained interactive HTML report (plotly, works offline) of an estimate."""
+    from vestim.io import load_vehicle, read_log
+    from vestim.io.files import check_output_path
     from vestim.report.html import write_html_report
 
     try:
+        check_output_path(out, inputs=[estimate, reference], suffixes=(".html", ".htm"))
         veh = load_vehicle(vehicle)
         meta = {"estimate": str(estimate), "reference": str(reference) if reference else "none",
                 "vehicle": veh.name, "wheel_radius": f"{veh.body.wheel_radius:g} m"}
@@ -318,6 +393,7 @@ def batch_cmd(
     from rich.markup import escape
 
     from vestim.batch import collect_logs, run_batch
+    from vestim.pipeline import PipelineConfig
 
     try:
         cfg = PipelineConfig.from_toml(config) if config is not None else None
@@ -355,6 +431,7 @@ def design_lpv_cmd(
 ) -> None:
     """Synthesise wheel-speed-scheduled LPV observer gains (001 eq. (30)–(32), 004 eq. (26)–(35))."""
     from vestim.design import design_lpv
+    from vestim.io import load_vehicle
 
     try:
         schedule = design_lpv(load_vehicle(vehicle))
@@ -372,6 +449,7 @@ def design_check_cmd(
 ) -> None:
     """Certify the observer error dynamics (affine quadratic stability, H∞ γ); exit 1 if not verified."""
     from vestim.design import check_design
+    from vestim.io import load_vehicle
 
     try:
         cert = check_design(load_vehicle(vehicle), gains)
@@ -390,6 +468,7 @@ def analyze_observability_cmd(
 ) -> None:
     """Observability rank, Gramians and stochastic observability tests over a log (000 Sec. III)."""
     from vestim.design import analyze_observability
+    from vestim.io import load_vehicle, read_log
 
     try:
         report = analyze_observability(read_log(log_path), load_vehicle(vehicle), out)
@@ -405,6 +484,16 @@ def demo_cmd(
     seed: Annotated[int, typer.Option(help="Sensor-noise seed.")] = 0,
 ) -> None:
     """Simulate the default maneuver set, estimate, score and plot; print the NRMS table."""
+    import numpy as np
+    from rich.table import Table
+
+    from vestim.io import load_vehicle, write_log
+    from vestim.metrics import score
+    from vestim.pipeline import Pipeline
+    from vestim.report.figures import plot_estimate
+    from vestim.report.plots import plot_simulation, save_figure
+    from vestim.sim import DEFAULT_SET, get_maneuver
+
     table = Table(title=f"vestim demo on {rich.markup.escape(vehicle)}: NRMS [%] of the default pipeline "
                         "(worst corner for per-corner channels)")
     cols = ("vx", "vy", "vx_*", "fx_*", "fy_*", "fz_*")

@@ -44,3 +44,7 @@ def optional_import(module: str, extra: str, purpose: str) -> ModuleType:
         raise MissingDependencyError(
             f"{purpose} need(s) {module}, which is not installed; install the extra with "
             f"pip install 'vestim[{extra}]'") from exc
+
+
+class OutputPathError(VestimError, ValueError):
+    """An output path that would overwrite an input or that the writer cannot write."""

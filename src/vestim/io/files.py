@@ -11,9 +11,11 @@ from __future__ import annotations
 
 import os
 import uuid
-from collections.abc import Iterator
+from collections.abc import Iterable, Iterator, Sequence
 from contextlib import contextmanager
 from pathlib import Path
+
+from vestim.errors import OutputPathError
 
 
 @contextmanager
@@ -40,3 +42,38 @@ def write_text_atomic(path: str | os.PathLike[str], text: str) -> Path:
     with atomic_path(path) as tmp:
         tmp.write_text(text, encoding="utf-8")
     return Path(path)
+
+
+def check_output_path(
+    out: str | os.PathLike[str],
+    *,
+    inputs: Iterable[str | os.PathLike[str] | None] = (),
+    suffixes: Sequence[str] = (),
+) -> Path:
+    """Refuse an output path before any work is done; returns it as a Path.
+
+    Args:
+        out: the file to write.
+        inputs: the files the command reads (``None`` entries are ignored); ``out`` must be
+            none of them, also through another spelling or a link.
+        suffixes: the extensions the writer knows (lower case, with the dot); empty: any.
+
+    Raises:
+        OutputPathError: ``out`` is an input, an existing folder, or has another extension.
+    """
+    p = Path(out)
+    for src in inputs:
+        if src is None:
+            continue
+        s = Path(src)
+        same = (s.exists() and p.exists() and os.path.samefile(s, p)) or (
+            p.resolve() == s.resolve())
+        if same:
+            raise OutputPathError(f"--out {str(p)!r} is the input {str(s)!r}; vestim never "
+                                  "overwrites its inputs: give another output file")
+    if p.is_dir():
+        raise OutputPathError(f"--out {str(p)!r} is a folder; give a file name")
+    if suffixes and p.suffix.lower() not in suffixes:
+        raise OutputPathError(f"--out {str(p)!r}: unsupported extension "
+                              f"{p.suffix or '(none)'!r}; use one of {', '.join(suffixes)}")
+    return p

@@ -37,7 +37,7 @@ the torque, attitude and a_z sources.
 from __future__ import annotations
 
 import tomllib
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field, fields, replace
 from pathlib import Path
 from typing import Any
@@ -446,20 +446,27 @@ class Pipeline:
                    ([f"mu_{c}_excited" for c in CORNERS], res["mu_excited"])]
         return groups
 
-    def run(self, log: pd.DataFrame, chunk: int = CHUNK) -> pd.DataFrame:
+    def run(self, log: pd.DataFrame, chunk: int = CHUNK,
+            progress: Callable[[float], None] | None = None) -> pd.DataFrame:
         """Estimate over a whole log (state reset first); returns the estimated channels.
 
         The log is processed in chunks of ``chunk`` samples (the state carries over, so the
         result does not depend on the chunking: :meth:`step` is the chunk of one), which
         bounds the intermediate arrays; the output is one float64 block filled in place.
+        ``progress``, if given, is called with the fraction of samples done after each chunk.
         """
         self.reset()
         u = inputs_from_log(log, self.vehicle)
         n = u.t.shape[0]
-        chunks = (self._groups(part.t, self._advance(part))
-                  for part in (_slice_inputs(u, a, min(a + chunk, n))
-                               for a in range(0, max(n, 1), chunk)))
-        return frame_from_chunks(chunks, n)
+
+        def advance(a: int) -> list[ColumnGroup]:
+            part = _slice_inputs(u, a, min(a + chunk, n))
+            groups = self._groups(part.t, self._advance(part))
+            if progress is not None:
+                progress(min(a + chunk, n) / max(n, 1))
+            return groups
+
+        return frame_from_chunks((advance(a) for a in range(0, max(n, 1), chunk)), n)
 
     def step(self, sample: Mapping[str, float]) -> dict[str, float]:
         """Advance by one sample (mapping of the log's column names); return that row.
