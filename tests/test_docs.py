@@ -23,8 +23,19 @@ def _text() -> str:
 
 
 def test_tables_are_the_loaders_tables():
-    """The loader accepts exactly these tables; a new one must be documented here first."""
-    assert set(TABLES) == set(veh._TABLES)
+    """The loader accepts exactly these tables (and [calibration], whose keys are checked
+    below); a new one must be documented here first."""
+    assert {*TABLES, "calibration"} == set(veh._TABLES)
+
+
+def test_every_calibration_key_is_documented():
+    from vestim.io.calibration import KEYS
+
+    text = _text()
+    for group, keys in KEYS.items():
+        assert f"[calibration.{group}]" in text
+        missing = [k for k in keys if f"`{k}`" not in text]
+        assert not missing, f"[calibration.{group}] keys not in docs/format.md: {missing}"
 
 
 @pytest.mark.parametrize("table", sorted(TABLES))

@@ -10,6 +10,9 @@ four further optional tables, each with documented defaults:
 ``[powertrain]``    torque limits, torque split, brake balance
 ``[magic_formula]`` the combined-slip Magic Formula tire plant
 
+and ``vestim calibrate`` adds ``[calibration.*]`` tables of identified values
+(:mod:`vestim.io.calibration`).
+
 Any other table, an unknown key, a missing required key, a wrong type or a
 non-physical value raises :class:`~vestim.errors.VehicleFileError` that names
 ``[table] key`` and says what is expected. All values are SI.
@@ -26,6 +29,7 @@ from typing import Any, Literal, TypeVar
 
 from vestim.constants import G
 from vestim.errors import VehicleFileError
+from vestim.io.calibration import Calibration, parse_calibration
 
 Drivetrain = Literal["awd", "fwd", "rwd"]
 DRIVETRAINS: tuple[str, ...] = ("awd", "fwd", "rwd")
@@ -261,6 +265,7 @@ class Vehicle:
     stiffness: Stiffness | None = None
     name: str = "vehicle"
     given: frozenset[str] = frozenset()
+    calibration: Calibration | None = None
 
     @property
     def stated_aerodynamics(self) -> Aerodynamics:
@@ -403,7 +408,7 @@ def default_magic_formula() -> dict[str, float]:
 
 
 _TABLES = ("vehicle", "tire", "stiffness", "suspension", "aerodynamics", "powertrain",
-           "magic_formula")
+           "magic_formula", "calibration")
 
 
 def vehicle_from_dict(data: dict[str, Any], name: str = "vehicle") -> Vehicle:
@@ -433,6 +438,7 @@ def vehicle_from_dict(data: dict[str, Any], name: str = "vehicle") -> Vehicle:
                    if "stiffness" in data else None),
         name=name,
         given=frozenset(t for t in _TABLES if t in data and t not in ("vehicle", "tire")),
+        calibration=parse_calibration(data["calibration"]) if "calibration" in data else None,
     )
 
 

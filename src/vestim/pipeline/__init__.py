@@ -45,7 +45,7 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
-from vestim.constants import CORNERS
+from vestim.constants import CORNERS, G
 from vestim.errors import VestimError
 from vestim.estimators.force import ForceConfig, ForceEstimator
 from vestim.estimators.force.estimator import (
@@ -75,6 +75,7 @@ from vestim.estimators.velocity.reference import (
     radius_params,
     stiffness_params,
 )
+from vestim.io.calibration import correct_columns, corrected_log
 from vestim.io.vehicle import Vehicle
 from vestim.models import kinematics as kin
 from vestim.pipeline import online
@@ -193,9 +194,16 @@ class Pipeline:
         self.config = config or PipelineConfig()
         b = vehicle.body
         self._xw, self._yw = kin.corner_positions(vehicle)
-        # Cornering stiffness per load: the [tire] table's σ0y/κy as the prior only.
-        self._stiff_prm = stiffness_params(vehicle.tire.sigma0_y / vehicle.tire.kappa_y,
-                                           self.config.cornering, b.wheel_radius, b.wheelbase)
+        # Cornering stiffness per load, the prior only: identified from the car's logs when
+        # the file is calibrated, else the [tire] table's σ0y/κy.
+        prior = vehicle.tire.sigma0_y / vehicle.tire.kappa_y
+        cal = vehicle.calibration
+        if cal is not None:
+            cy_f, cy_r = cal.excited("tire", "cy_f"), cal.excited("tire", "cy_r")
+            if cy_f is not None and cy_r is not None:
+                prior = (cy_f + cy_r) / (b.mass * G)
+        self._stiff_prm = stiffness_params(prior, self.config.cornering, b.wheel_radius,
+                                           b.wheelbase)
         self._stiff_state = np.zeros(9)
         self._radius_prm = radius_params(self.config.radius, b.wheel_radius)
         self._radius_state = np.zeros(9)
@@ -456,6 +464,9 @@ class Pipeline:
         ``progress``, if given, is called with the fraction of samples done after each chunk.
         """
         self.reset()
+        b = self.vehicle.body
+        log = corrected_log(log, self.vehicle.calibration, wheel_radius=b.wheel_radius,
+                            steering_ratio=b.steering_ratio)
         u = inputs_from_log(log, self.vehicle)
         n = u.t.shape[0]
 
@@ -475,6 +486,12 @@ class Pipeline:
         compiled call (:mod:`vestim.pipeline.online`); others through the general path. Both give
         the batch result.
         """
+        cal = self.vehicle.calibration
+        if cal is not None and cal.groups:
+            b = self.vehicle.body
+            cols = {k: np.array([float(v)]) for k, v in sample.items()}
+            correct_columns(cols, cal, wheel_radius=b.wheel_radius, steering_ratio=b.steering_ratio)
+            sample = {k: float(v[0]) for k, v in cols.items()}
         row = self._fast_step(sample)
         if row is not None:
             return row

@@ -444,12 +444,21 @@ class ForceEstimator:
         b, s = vehicle.body, vehicle.suspension
         self._c_roll = vehicle.body.mass * (b.cg_height - b.roll_center_height) / s.roll_stiffness
         self._c_pitch = -b.mass * (b.cg_height - s.pitch_center_height) / s.pitch_stiffness
+        stated_roll = "suspension" in vehicle.given
+        cal = vehicle.calibration
+        if cal is not None:  # gradients identified from the car's logs beat any default
+            roll = cal.excited("body", "roll_gradient")
+            pitch = cal.excited("body", "pitch_gradient")
+            if roll is not None:
+                self._c_roll, stated_roll = roll, True
+            if pitch is not None:
+                self._c_pitch = pitch
         self._att_prm = np.array([self.config.roll_tau, self.config.pitch_gain, self._c_roll,
                                   self._c_pitch, b.wheel_radius, self.config.rate_filter_hz,
                                   {"fwd": 1.0, "rwd": 0.0}.get(b.drivetrain, -1.0),
                                   self.config.roll_slide,
-                                  self.config.roll_gain if "suspension" in vehicle.given
-                                  else 0.0, self.config.roll_bias_tau])
+                                  self.config.roll_gain if stated_roll else 0.0,
+                                  self.config.roll_bias_tau])
         self._xw = np.array([b.lf, b.lf, -b.lr, -b.lr])
         self._yw = 0.5 * np.array([b.track_f, -b.track_f, b.track_r, -b.track_r])
         self._w4, self._c4, self._tau4 = ukf_weights(4)

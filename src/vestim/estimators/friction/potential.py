@@ -96,15 +96,25 @@ def friction_params(p: FrictionParams) -> np.ndarray:
 def corner_kx(vehicle: Vehicle, params: FrictionParams) -> np.ndarray:
     """Longitudinal slip stiffness per unit load per corner (4,), per unit slip ratio.
 
-    From the vehicle file's ``[stiffness]`` axle totals divided by the static axle load when
-    the file states that table, else ``params.kx_nominal`` on every corner.
+    From a calibrated file's ``[calibration.tire] cx_f, cx_r`` (an axle the logs did not
+    excite takes the other's), else the file's ``[stiffness]`` axle totals when it states
+    that table, each divided by the static axle load, else ``params.kx_nominal``.
     """
-    if vehicle.stiffness is None or "stiffness" not in vehicle.given:
-        return np.full(4, params.kx_nominal)
     b = vehicle.body
     wheelbase = b.lf + b.lr
     front = b.mass * G * b.lr / wheelbase
     rear = b.mass * G * b.lf / wheelbase
+    cal = vehicle.calibration
+    if cal is not None:
+        cx_f, cx_r = cal.excited("tire", "cx_f"), cal.excited("tire", "cx_r")
+        if cx_f is not None or cx_r is not None:  # an unexcited axle borrows the other's
+            kf = cx_f / front if cx_f is not None else None
+            kr = cx_r / rear if cx_r is not None else None
+            kf = kf if kf is not None else kr
+            kr = kr if kr is not None else kf
+            return np.array([kf, kf, kr, kr], dtype=np.float64)
+    if vehicle.stiffness is None or "stiffness" not in vehicle.given:
+        return np.full(4, params.kx_nominal)
     kf, kr = vehicle.stiffness.cx_f / front, vehicle.stiffness.cx_r / rear
     return np.array([kf, kf, kr, kr])
 

@@ -1,0 +1,279 @@
+"""The ``[calibration]`` tables of a calibrated vehicle file (``vestim calibrate``, issue 13).
+
+``vestim calibrate LOG… --vehicle BASE.toml --out CAR.toml`` writes the base file's tables
+unchanged and adds what it identified from the logs, one table per group::
+
+    [calibration]
+    base = "vehicle2.toml"             # the file calibrated
+    sources = ["x05.parquet", ...]     # the logs it was calibrated from
+    vestim_version = "0.1.0"
+
+    [calibration.wheels]
+    radius_fl = 0.3512                 # the value (SI unit of the key, below)
+    sigma_radius_fl = 0.0004           # its one-σ uncertainty
+    excited_radius_fl = true           # false: the logs did not determine it
+    evidence_radius_fl = "x05: 41 s of straight free rolling at 8-27 m/s"
+
+A value the logs did not excite keeps the base value, with ``excited_<key> = false``,
+``sigma_<key> = nan`` and the reason as its evidence. The keys of each group and their
+units are :data:`KEYS`. How the estimators use them (:func:`corrected_log` and the stages):
+
+- ``wheels``: each wheel's effective rolling radius; ``omega_<c>`` is scaled by
+  radius_<c> / ``[vehicle] wheel_radius`` before estimation.
+- ``imu``: biases (sensor axes, subtracted first), ``accel_scale`` (the accelerometer's
+  |g| reading / g; the specific force is divided by it) and the mounting rotation
+  ``mount_roll``, ``mount_pitch``, ``mount_yaw`` (rad; the convention of
+  :func:`vestim.io.channel_map.mounting_matrix`) that takes sensor axes to body axes.
+- ``steering``: ``steering_offset`` (rad of road-wheel angle, subtracted) and
+  ``steering_ratio`` (the car's steering-wheel/road-wheel ratio; road-wheel angles derived
+  from the steering-wheel angle with ``[vehicle] steering_ratio`` are rescaled to it);
+  ``understeer_gradient`` (rad per m/s²) is reported only.
+- ``body``: ``roll_gradient``, ``pitch_gradient`` (rad per m/s²): the attitude filter's
+  quasi-static roll and pitch (``vestim.estimators.force.normal``), as a stated
+  ``[suspension]`` would give them.
+- ``tire``: axle cornering stiffness ``cy_f``, ``cy_r`` (N/rad) — the prior of the online
+  cornering-stiffness regression — and longitudinal slip stiffness ``cx_f``, ``cx_r`` (N per
+  unit slip) — the friction stage's K_x; LuGre parameters identified from the logs are
+  written into ``[tire]`` itself.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+import pandas as pd
+
+from vestim.errors import VehicleFileError
+
+KEYS: dict[str, dict[str, str]] = {
+    "wheels": {f"radius_{c}": "m" for c in ("fl", "fr", "rl", "rr")},
+    "imu": {"bias_ax": "m/s^2", "bias_ay": "m/s^2", "bias_az": "m/s^2",
+            "bias_yaw_rate": "rad/s", "bias_roll_rate": "rad/s", "bias_pitch_rate": "rad/s",
+            "accel_scale": "-", "mount_roll": "rad", "mount_pitch": "rad", "mount_yaw": "rad"},
+    "steering": {"steering_ratio": "-", "steering_offset": "rad",
+                 "understeer_gradient": "rad/(m/s^2)"},
+    "body": {"roll_gradient": "rad/(m/s^2)", "pitch_gradient": "rad/(m/s^2)"},
+    "tire": {"cy_f": "N/rad", "cy_r": "N/rad", "cx_f": "N", "cx_r": "N",
+             "sigma0_x": "1/m", "sigma1_x": "s/m", "sigma2_x": "s/m", "kappa_x": "1/m",
+             "sigma0_y": "1/m", "sigma1_y": "s/m", "sigma2_y": "s/m", "kappa_y": "1/m",
+             "mu_s": "-", "mu_c": "-", "v_s": "m/s", "alpha": "-"},
+}
+"""Every key ``vestim calibrate`` may write, per group, with its SI unit."""
+
+LUGRE_KEYS = ("sigma0_x", "sigma1_x", "sigma2_x", "kappa_x", "sigma0_y", "sigma1_y",
+              "sigma2_y", "kappa_y", "mu_s", "mu_c", "v_s", "alpha")
+"""The ``tire`` keys that are also ``[tire]`` keys (written there when excited)."""
+
+
+@dataclass(frozen=True)
+class Identified:
+    """A calibrated quantity.
+
+    Attributes:
+        value: the identified value (SI unit ``unit``); the base value when not excited.
+        sigma: one-σ uncertainty of ``value`` (same unit); NaN when not excited.
+        excited: False when the logs do not determine the value ("not excited").
+        evidence: the data it was found from, for the report: which logs, how many
+            seconds or samples, over which range (e.g. "x05, x08: 41 s of straight free
+            rolling at 8-27 m/s"), or why it was not excited.
+        unit: the value's unit, e.g. "m", "rad", "m/s^2", "N/rad", "-".
+    """
+
+    value: float
+    sigma: float
+    excited: bool
+    evidence: str
+    unit: str
+
+    def __post_init__(self) -> None:
+        if not math.isfinite(self.value):
+            raise ValueError(f"identified value must be finite, got {self.value}")
+        if self.excited and not (math.isfinite(self.sigma) and self.sigma >= 0):
+            raise ValueError(f"an excited value needs a finite sigma >= 0, got {self.sigma}")
+
+    @classmethod
+    def not_excited(cls, base: float, why: str, unit: str) -> Identified:
+        """The base value kept, with the reason the logs did not determine it."""
+        return cls(float(base), math.nan, False, why, unit)
+
+
+@dataclass(frozen=True)
+class Calibration:
+    """The ``[calibration]`` tables: identified values per group (see :data:`KEYS`)."""
+
+    groups: Mapping[str, Mapping[str, Identified]] = field(default_factory=dict)
+    base: str = ""
+    sources: tuple[str, ...] = ()
+    vestim_version: str = ""
+
+    def get(self, group: str, key: str) -> Identified | None:
+        """The value of ``[calibration.<group>] <key>``, or None when the file has none."""
+        return self.groups.get(group, {}).get(key)
+
+    def excited(self, group: str, key: str) -> float | None:
+        """The value if the logs determined it, else None."""
+        v = self.get(group, key)
+        return v.value if v is not None and v.excited else None
+
+
+def parse_calibration(table: Any) -> Calibration:
+    """Validate a ``[calibration]`` table (parsed TOML); errors name ``[calibration.<g>] key``."""
+    if not isinstance(table, dict):
+        raise VehicleFileError("[calibration] must be a table")
+    top = {"base", "sources", "vestim_version", *KEYS}
+    unknown = sorted(set(table) - top)
+    if unknown:
+        raise VehicleFileError(f"[calibration] unknown key(s) {', '.join(unknown)}; allowed: "
+                               f"{', '.join(sorted(top))}")
+    sources = table.get("sources", [])
+    if not isinstance(sources, list) or not all(isinstance(s, str) for s in sources):
+        raise VehicleFileError("[calibration] sources must be a list of file names")
+    for key in ("base", "vestim_version"):
+        if not isinstance(table.get(key, ""), str):
+            raise VehicleFileError(f"[calibration] {key} must be a string")
+    groups: dict[str, dict[str, Identified]] = {}
+    for group, units in KEYS.items():
+        if group not in table:
+            continue
+        g = table[group]
+        where = f"[calibration.{group}]"
+        if not isinstance(g, dict):
+            raise VehicleFileError(f"{where} must be a table")
+        allowed = {f"{p}{k}" for k in units for p in ("", "sigma_", "excited_", "evidence_")}
+        bad = sorted(set(g) - allowed)
+        if bad:
+            raise VehicleFileError(f"{where} unknown key(s) {', '.join(bad)}; allowed: "
+                                   f"{', '.join(units)} and their sigma_, excited_, evidence_")
+        values: dict[str, Identified] = {}
+        for key, unit in units.items():
+            if key not in g:
+                extra = [k for k in (f"sigma_{key}", f"excited_{key}", f"evidence_{key}") if k in g]
+                if extra:
+                    raise VehicleFileError(f"{where} {extra[0]} without {key}")
+                continue
+            value, sigma = g[key], g.get(f"sigma_{key}", math.nan)
+            excited, evidence = g.get(f"excited_{key}", True), g.get(f"evidence_{key}", "")
+            for name, v in ((key, value), (f"sigma_{key}", sigma)):
+                if isinstance(v, bool) or not isinstance(v, int | float):
+                    raise VehicleFileError(f"{where} {name} = {v!r} must be a number")
+            if not isinstance(excited, bool):
+                raise VehicleFileError(f"{where} excited_{key} = {excited!r} must be true or false")
+            if not isinstance(evidence, str):
+                raise VehicleFileError(f"{where} evidence_{key} must be a string")
+            try:
+                values[key] = Identified(float(value), float(sigma), excited, evidence, unit)
+            except ValueError as exc:
+                raise VehicleFileError(f"{where} {key}: {exc}") from None
+        groups[group] = values
+    return Calibration(groups, str(table.get("base", "")), tuple(sources),
+                       str(table.get("vestim_version", "")))
+
+
+def _toml_value(v: Any) -> str:
+    if isinstance(v, bool):
+        return "true" if v else "false"
+    if isinstance(v, float | int):
+        return "nan" if math.isnan(v) else repr(float(v))
+    if isinstance(v, str):
+        return '"' + v.replace("\\", "\\\\").replace('"', '\\"').replace("\n", " ") + '"'
+    if isinstance(v, list | tuple):
+        return "[" + ", ".join(_toml_value(x) for x in v) + "]"
+    raise TypeError(f"no TOML form for {v!r}")
+
+
+def calibration_toml(cal: Calibration) -> str:
+    """The ``[calibration]`` tables as TOML text (round trip: :func:`parse_calibration`)."""
+    lines = ["[calibration]", f"base = {_toml_value(cal.base)}",
+             f"sources = {_toml_value(list(cal.sources))}",
+             f"vestim_version = {_toml_value(cal.vestim_version)}"]
+    for group, units in KEYS.items():
+        values = cal.groups.get(group)
+        if not values:
+            continue
+        lines += ["", f"[calibration.{group}]"]
+        for key in units:
+            v = values.get(key)
+            if v is None:
+                continue
+            lines += [f"{key} = {_toml_value(v.value)}  # {v.unit}",
+                      f"sigma_{key} = {_toml_value(v.sigma)}",
+                      f"excited_{key} = {_toml_value(v.excited)}",
+                      f"evidence_{key} = {_toml_value(v.evidence)}"]
+    return "\n".join(lines) + "\n"
+
+
+def corrected_log(df: pd.DataFrame, cal: Calibration | None, *, wheel_radius: float,
+                  steering_ratio: float) -> pd.DataFrame:
+    """The log with the calibrated sensor corrections applied (a new frame; ``df`` unchanged).
+
+    Args:
+        df: a drive log (spec columns).
+        cal: the vehicle file's calibration (None: ``df`` is returned as it is).
+        wheel_radius: the vehicle file's ``[vehicle] wheel_radius``, m.
+        steering_ratio: the vehicle file's ``[vehicle] steering_ratio``.
+
+    Returns:
+        Wheel speeds scaled to the per-wheel radii, the IMU's biases, scale and mounting
+        removed, the steering offset removed and a steering-wheel-derived angle rescaled to
+        the identified ratio (see the module docstring). Channels the log lacks stay absent.
+    """
+    if cal is None or not cal.groups:
+        return df
+    cols = {c: df[c].to_numpy(dtype=np.float64) for c in CORRECTED if c in df}
+    correct_columns(cols, cal, wheel_radius=wheel_radius, steering_ratio=steering_ratio)
+    out = df.copy()
+    for c, v in cols.items():
+        out[c] = v
+    return out
+
+
+CORRECTED = ("omega_fl", "omega_fr", "omega_rl", "omega_rr", "ax", "ay", "az", "roll_rate",
+             "pitch_rate", "yaw_rate", "delta_fl", "delta_fr", "delta", "steering_wheel_angle")
+"""The channels a calibration corrects."""
+
+
+def correct_columns(cols: dict[str, np.ndarray], cal: Calibration, *, wheel_radius: float,
+                    steering_ratio: float) -> None:
+    """:func:`corrected_log` on a mapping of channel arrays (same length), in place: the one
+    place the corrections are written, for whole logs and for single samples alike."""
+    for c in ("fl", "fr", "rl", "rr"):
+        r = cal.excited("wheels", f"radius_{c}")
+        if r is not None and f"omega_{c}" in cols:
+            cols[f"omega_{c}"] = cols[f"omega_{c}"] * (r / wheel_radius)
+
+    def imu(key: str, default: float) -> float:
+        v = cal.excited("imu", key)
+        return default if v is None else v
+
+    acc, gyro = ("ax", "ay", "az"), ("roll_rate", "pitch_rate", "yaw_rate")
+    for name in (*acc, *gyro):
+        if name in cols:
+            cols[name] = cols[name] - imu(f"bias_{name}", 0.0)
+    scale = imu("accel_scale", 1.0)
+    for name in acc:
+        if name in cols:
+            cols[name] = cols[name] / scale
+    angles = [imu(k, 0.0) for k in ("mount_roll", "mount_pitch", "mount_yaw")]
+    if any(a != 0.0 for a in angles):
+        from vestim.io.channel_map import mounting_matrix  # io-internal; pint loads lazily
+
+        rot = mounting_matrix(*(math.degrees(a) for a in angles))
+        for names in (acc, gyro):
+            if all(n in cols for n in names):
+                body = np.column_stack([cols[n] for n in names]) @ rot.T
+                for j, n in enumerate(names):
+                    cols[n] = np.ascontiguousarray(body[:, j])
+    offset = cal.excited("steering", "steering_offset") or 0.0
+    for name in ("delta_fl", "delta_fr", "delta"):
+        if name in cols:
+            cols[name] = cols[name] - offset
+    ratio = cal.excited("steering", "steering_ratio")
+    if ratio is not None and "steering_wheel_angle" in cols and not (
+            {"delta", "delta_fl", "delta_fr"} & set(cols)):
+        # The road-wheel angle is swa / [vehicle] steering_ratio downstream: scaling swa by
+        # file ratio / identified ratio makes it swa / identified ratio.
+        cols["steering_wheel_angle"] = cols["steering_wheel_angle"] * (steering_ratio / ratio)
