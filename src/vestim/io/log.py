@@ -167,7 +167,7 @@ def write_log(
     """
     p = Path(path)
     kind = _kind(p)
-    _check_structure(df, source="log to write")
+    check_structure(df, source="log to write")
     if metadata is not None:
         for key, value in metadata.items():
             if not isinstance(key, str) or not isinstance(value, str):
@@ -225,7 +225,7 @@ def validate_log(
         wheel_radius: effective rolling radius in m, or ``None`` to skip the scale check.
         source: prefix of every message (the file name when called by :func:`read_log`).
     """
-    t = _check_structure(df, source=source)
+    t = check_structure(df, source=source)
     if isinstance(require, str):
         require = (require,)
     _check_required(df, tuple(require), source)
@@ -344,7 +344,7 @@ def _where(i: int, t: np.ndarray | None) -> str:
     return f"row {i} (t = {float(t[i])!r} s)"
 
 
-def _check_structure(df: pd.DataFrame, *, source: str) -> np.ndarray:
+def check_structure(df: pd.DataFrame, *, source: str) -> np.ndarray:
     """Structural checks shared by reading and writing; returns ``t`` as float64."""
     if not isinstance(df, pd.DataFrame):
         raise TypeError(f"{source}: expected a pandas DataFrame, got {type(df).__name__}")

@@ -36,6 +36,7 @@ the torque, attitude and a_z sources.
 
 from __future__ import annotations
 
+import math
 import tomllib
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field, fields, replace
@@ -46,7 +47,7 @@ import numpy as np
 import pandas as pd
 
 from vestim.constants import CORNERS, G
-from vestim.errors import VestimError
+from vestim.errors import LogFormatError, VestimError
 from vestim.estimators.force import ForceConfig, ForceEstimator
 from vestim.estimators.force.estimator import (
     WHEEL_OUTPUTS,
@@ -76,6 +77,8 @@ from vestim.estimators.velocity.reference import (
     stiffness_params,
 )
 from vestim.io.calibration import correct_columns, corrected_log
+from vestim.io.channels import REF_PREFIX, SPARSE
+from vestim.io.log import check_structure
 from vestim.io.vehicle import Vehicle
 from vestim.models import kinematics as kin
 from vestim.pipeline import online
@@ -88,6 +91,9 @@ WHEEL_ONLY_OUTPUTS: tuple[str, ...] = (
     *(f"{q}_{c}" for q in ("slip_ratio", *WHEEL_OUTPUTS) for c in CORNERS),
     "radius_scale", "gnss_latency")
 """Outputs that need the wheel speeds: left out for a log without them."""
+
+HOLD_S = 0.5
+"""Longest time (s) :meth:`Pipeline.step` holds a channel's last finite value over NaN/inf."""
 
 CHUNK = 65_536
 """Samples per chunk of :meth:`Pipeline.run` (bounds the intermediate arrays to ~100 MB)."""
@@ -228,6 +234,8 @@ class Pipeline:
         self._prev = np.array([np.nan, 0.0])  # (t, yaw rate) of the previous sample, for ṙ
         self._fused_is_reference = True  # the fused filter has not diverged from the plain one
         self._step_args: tuple[Any, ...] | None = None  # compiled step's arguments (cache)
+        self._t_prev_step = -math.inf  # step()'s guard: last t, last finite value per channel
+        self._last_finite: dict[str, tuple[float, float]] = {}
         self._step_names: list[str] = []
         self._step_rates: tuple[bool, bool] | None = None  # rate channels last noted
 
@@ -243,6 +251,8 @@ class Pipeline:
         self._stiff_state[:] = 0.0
         self._radius_state[:] = 0.0
         self._friction_state[:] = np.nan
+        self._t_prev_step = -math.inf
+        self._last_finite = {}
         self._t_gnss = np.nan
         self._fused_is_reference = True
         self._step_args = None
@@ -454,6 +464,32 @@ class Pipeline:
                    ([f"mu_{c}_excited" for c in CORNERS], res["mu_excited"])]
         return groups
 
+    def _hold_gaps(self, sample: Mapping[str, float]) -> Mapping[str, float]:
+        """:meth:`step`'s guard against dropped values (see there)."""
+        t = float(sample.get("t", np.nan))
+        if not math.isfinite(t) or t <= self._t_prev_step:
+            raise LogFormatError(f"sample t = {sample.get('t')!r} after t = {self._t_prev_step!r}: "
+                                 "t must be finite and strictly increasing, in seconds")
+        self._t_prev_step = t
+        fixed: dict[str, float] | None = None
+        for key, value in sample.items():
+            if key in SPARSE or key.startswith(REF_PREFIX):
+                continue
+            v = float(value)
+            if math.isfinite(v):
+                self._last_finite[key] = (t, v)
+                continue
+            last = self._last_finite.get(key)
+            if last is None or t - last[0] > HOLD_S:
+                since = "the first sample" if last is None else f"t = {last[0]:.3f} s"
+                raise LogFormatError(
+                    f"sample at t = {t:.3f} s: channel {key!r} is {v} and has had no finite value "
+                    f"since {since} (values are held for at most {HOLD_S} s); check the sensor "
+                    "or leave the channel out")
+            fixed = dict(sample) if fixed is None else fixed
+            fixed[key] = last[1]
+        return sample if fixed is None else fixed
+
     def run(self, log: pd.DataFrame, chunk: int = CHUNK,
             progress: Callable[[float], None] | None = None) -> pd.DataFrame:
         """Estimate over a whole log (state reset first); returns the estimated channels.
@@ -464,6 +500,7 @@ class Pipeline:
         ``progress``, if given, is called with the fraction of samples done after each chunk.
         """
         self.reset()
+        check_structure(log, source="Pipeline.run input")
         b = self.vehicle.body
         log = corrected_log(log, self.vehicle.calibration, wheel_radius=b.wheel_radius,
                             steering_ratio=b.steering_ratio)
@@ -485,7 +522,14 @@ class Pipeline:
         Samples with wheel torques and ``az`` in the common configurations go through one
         compiled call (:mod:`vestim.pipeline.online`); others through the general path. Both give
         the batch result.
+
+        A live feed drops values: a NaN or inf in a measured channel is replaced by that
+        channel's last finite value for up to :data:`HOLD_S` (one bad value must not make every
+        later row NaN); longer, or a non-finite or non-increasing ``t``, raises
+        :class:`~vestim.errors.LogFormatError` naming the channel. ``gnss_speed`` is sparse:
+        NaN means "no fix".
         """
+        sample = self._hold_gaps(sample)
         cal = self.vehicle.calibration
         if cal is not None and cal.groups:
             b = self.vehicle.body
