@@ -333,3 +333,24 @@ def test_interpolation_at_reference_knots_equals_exact_pairing(sim_log: pd.DataF
     via_interp = score(sub, sim_log)
     exact = score(sub, sim_log.iloc[::2].reset_index(drop=True))
     pd.testing.assert_frame_equal(via_interp, exact, rtol=1e-12)
+
+
+def test_coverage_of_a_gaussian_error_is_68_and_95_percent():
+    """Errors drawn from N(0, σ) with the σ written: 68.3 % within 1σ, 95.4 % within 2σ
+    (20 000 samples: the binomial standard error is 0.33 %, so ±1 % is 3 standard errors)."""
+    from vestim.metrics import coverage
+
+    rng = np.random.default_rng(7)
+    n = 20_000
+    truth = rng.normal(10.0, 1.0, n)
+    sigma = rng.uniform(0.05, 0.5, n)
+    est = pd.DataFrame({"t": np.arange(n) * 0.01, "vx": truth + sigma * rng.normal(size=n),
+                        "sigma_vx": sigma, "vy": truth, "sigma_vy": 2 * sigma})
+    ref = pd.DataFrame({"t": est["t"], "ref_vx": truth, "ref_vy": truth + sigma * 3.0})
+    table = coverage(est, ref).set_index("channel")
+    assert abs(table.loc["vx", "within_1sigma"] - 0.683) < 0.01
+    assert abs(table.loc["vx", "within_2sigma"] - 0.954) < 0.01
+    # errors of 3σ against a stated 2σ: outside 1 stated σ, inside 2 stated σ (4σ)
+    assert table.loc["vy", "within_1sigma"] == 0.0
+    assert table.loc["vy", "within_2sigma"] == 1.0
+    assert table.loc["vx", "samples"] == n

@@ -33,7 +33,10 @@ __all__ = [
     "FLOORS",
     "SCORE_COLUMNS",
     "ErrorStats",
+    "COVERAGE_COLUMNS",
     "channel_family",
+    "coverage",
+    "coverage_markdown",
     "error_stats",
     "floor_for",
     "max_abs_error",
@@ -347,6 +350,55 @@ def score(
     return pd.DataFrame(rows, columns=list(SCORE_COLUMNS))
 
 
+COVERAGE_COLUMNS: tuple[str, ...] = ("channel", "unit", "within_1sigma", "within_2sigma",
+                                     "median_sigma", "rmse", "samples")
+"""Columns of :func:`coverage`."""
+
+
+def coverage(estimate: pd.DataFrame, reference: pd.DataFrame, *,
+             estimate_name: str = "estimate", reference_name: str = "reference") -> pd.DataFrame:
+    """How honest the estimate's σ is: for every channel ``X`` with ``sigma_X`` and ``ref_X``,
+    the share of samples whose error lies within 1σ and within 2σ.
+
+    A Gaussian error with that σ gives 68.3 % and 95.4 %; the issue's band for a calibrated
+    σ is 60–80 % and 90–98 %. Time alignment and NaN handling are those of :func:`score`.
+
+    Returns:
+        One row per channel, columns :data:`COVERAGE_COLUMNS` (shares as fractions 0–1).
+
+    Raises:
+        LogFormatError: as :func:`score`; also when no channel has both a σ and a reference.
+    """
+    names = [c for c in ch.canonical_order(estimate.columns)
+             if _is_candidate(c) and f"{ch.SIGMA_PREFIX}{c}" in estimate.columns
+             and _reference_column(reference, c) is not None]
+    if not names:
+        raise LogFormatError(f"{estimate_name}: no channel has both a sigma_ column and a "
+                             f"reference in {reference_name}")
+    t_est, t_ref = _time(estimate, estimate_name), _time(reference, reference_name)
+    rows_used, interpolate = _align(t_est, t_ref, estimate_name, reference_name)
+    rows: list[dict[str, Any]] = []
+    for name in names:
+        ref = _reference_column(reference, name)
+        assert ref is not None
+        if interpolate:
+            ref = np.interp(t_est[rows_used], t_ref, ref)
+        est = estimate[name].to_numpy(dtype=float)[rows_used]
+        sig = estimate[f"{ch.SIGMA_PREFIX}{name}"].to_numpy(dtype=float)[rows_used]
+        ok = np.isfinite(est) & np.isfinite(ref) & np.isfinite(sig)
+        err = np.abs(est[ok] - ref[ok])
+        n = int(ok.sum())
+        rows.append({
+            "channel": name, "unit": ch.unit_of(name) or "",
+            "within_1sigma": float(np.mean(err <= sig[ok])) if n else math.nan,
+            "within_2sigma": float(np.mean(err <= 2 * sig[ok])) if n else math.nan,
+            "median_sigma": float(np.median(sig[ok])) if n else math.nan,
+            "rmse": float(np.sqrt(np.mean(err**2))) if n else math.nan,
+            "samples": n,
+        })
+    return pd.DataFrame(rows, columns=list(COVERAGE_COLUMNS))
+
+
 # ------------------------------------------------------------------------------ output
 
 def _sig(value: Any, digits: int = 4, *, fixed: int | None = None) -> str:
@@ -385,6 +437,17 @@ def to_markdown(table: pd.DataFrame) -> str:
         note += " * The truth stayed below the floor, so the floor was the denominator."
     lines += ["", note]
     return "\n".join(lines) + "\n"
+
+
+def coverage_markdown(table: pd.DataFrame) -> str:
+    """:func:`coverage`'s table as Markdown (shares in percent)."""
+    lines = ["| channel | unit | within 1σ % | within 2σ % | median σ | RMSE | samples |",
+             "|---|---|---:|---:|---:|---:|---:|"]
+    for r in table.itertuples(index=False):
+        lines.append(f"| {r.channel} | {r.unit} | {_sig(100 * r.within_1sigma, fixed=1)} | "
+                     f"{_sig(100 * r.within_2sigma, fixed=1)} | {_sig(r.median_sigma)} | "
+                     f"{_sig(r.rmse)} | {r.samples} |")
+    return "\n".join(lines)
 
 
 def _json_value(value: Any) -> Any:
