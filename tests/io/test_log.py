@@ -571,3 +571,23 @@ def test_road_wheel_angles_errors() -> None:
         road_wheel_angles(df, 16.7)
     with pytest.raises(LogFormatError, match=r"'delta_fl' is present without its pair"):
         road_wheel_angles(df.assign(delta_fl=0.0), 16.7)
+
+
+def test_temp_file_of_a_killed_writer_is_removed_by_the_next_write(tmp_path: Path) -> None:
+    """kill -9 leaves `.log.parquet.<pid>.<uuid>.tmp` behind; the next write to the same file
+    removes it when that process is gone, and leaves a live writer's temp file alone."""
+    import subprocess
+    import sys
+
+    dead = subprocess.run([sys.executable, "-c", "import os; print(os.getpid())"],
+                          capture_output=True, text=True, check=True)
+    pid = int(dead.stdout)
+    stale = tmp_path / f".log.parquet.{pid}.{'0' * 32}.tmp"
+    stale.write_bytes(b"PAR1 partial")
+    live = tmp_path / f".log.parquet.{os.getpid()}.{'1' * 32}.tmp"
+    live.write_bytes(b"PAR1 in progress")
+    other = tmp_path / f".other.parquet.{pid}.{'2' * 32}.tmp"
+    other.write_bytes(b"x")
+    write_log(_log(), tmp_path / "log.parquet")
+    assert not stale.exists()
+    assert live.exists() and other.exists()

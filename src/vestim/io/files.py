@@ -2,7 +2,9 @@
 
 A temporary file in the target's folder is written and then moved into place
 with :func:`os.replace`, so a reader never sees a partial file and a failed
-write leaves any previous file untouched. The temporary file is created with
+write leaves any previous file untouched. The temporary file's name holds the writer's
+process id, so the next write to the same target removes one left by a killed writer
+(kill -9 runs no cleanup). The temporary file is created with
 mode 0o666 minus the umask (as a plain ``open`` would); ``tempfile.mkstemp``
 would leave the final file readable by its owner only.
 """
@@ -27,7 +29,8 @@ def atomic_path(path: str | os.PathLike[str]) -> Iterator[Path]:
     """
     target = Path(path)
     target.parent.mkdir(parents=True, exist_ok=True)
-    tmp = target.parent / f".{target.name}.{uuid.uuid4().hex}.tmp"
+    _remove_stale(target)
+    tmp = target.parent / f".{target.name}.{os.getpid()}.{uuid.uuid4().hex}.tmp"
     os.close(os.open(tmp, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o666))
     try:
         yield tmp
@@ -35,6 +38,22 @@ def atomic_path(path: str | os.PathLike[str]) -> Iterator[Path]:
     except BaseException:
         tmp.unlink(missing_ok=True)
         raise
+
+
+def _remove_stale(target: Path) -> None:
+    """Remove temporary files of ``target`` left by a writer that was killed (kill -9 runs no
+    cleanup): those whose writer process no longer exists. A live writer's file is kept."""
+    for tmp in target.parent.glob(f".{target.name}.*.tmp"):
+        parts = tmp.name[len(target.name) + 2:].split(".")
+        if len(parts) != 3 or not parts[0].isdigit():
+            continue
+        pid = int(parts[0])
+        try:
+            os.kill(pid, 0)  # signal 0: only asks whether the process exists
+        except ProcessLookupError:
+            tmp.unlink(missing_ok=True)
+        except PermissionError:  # it exists, under another user
+            continue
 
 
 def write_text_atomic(path: str | os.PathLike[str], text: str) -> Path:
