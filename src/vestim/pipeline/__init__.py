@@ -62,6 +62,7 @@ from vestim.estimators.force.estimator import (
 from vestim.estimators.force.longitudinal import METHODS as FORCE_METHODS
 from vestim.estimators.friction import FrictionParams, corner_kx, friction_params, friction_potential
 from vestim.estimators.fusion import FUSION_METHODS, FusionParams, confidences, fuse
+from vestim.estimators.validity import ValidityParams, validity
 from vestim.estimators.velocity.corner import CornerVelocityEstimator, CornerVelocityInput
 from vestim.estimators.velocity.kinematic import KinematicIntegrator
 from vestim.estimators.velocity.lpv_observer import GainSchedule as LPVGains
@@ -131,6 +132,7 @@ class PipelineConfig:
         radius: the online wheel-radius scale from ``gnss_speed`` (logs that have it).
         fusion_params: parameters of the fusion stage.
         friction: the road-friction-potential stage (:mod:`vestim.estimators.friction`).
+        validity: thresholds of the validity flags (:mod:`vestim.estimators.validity`).
         gains: path of a gains file from ``vestim design lpv`` for the "lpv" observers
             (default: 001's constant gains).
     """
@@ -144,6 +146,7 @@ class PipelineConfig:
     radius: RadiusParams = field(default_factory=RadiusParams)
     fusion_params: FusionParams = field(default_factory=FusionParams)
     friction: FrictionParams = field(default_factory=FrictionParams)
+    validity: ValidityParams = field(default_factory=ValidityParams)
     gains: str | None = None
 
     def __post_init__(self) -> None:
@@ -168,7 +171,7 @@ class PipelineConfig:
         if not isinstance(table, dict):
             raise PipelineConfigError(f"{path}: no [pipeline] table")
         allowed = {f.name for f in fields(cls)} - {"reference", "fusion_params", "cornering",
-                                                "radius", "friction"}
+                                                "radius", "friction", "validity"}
         unknown = sorted(set(table) - allowed)
         if unknown:
             raise PipelineConfigError(f"{path}: [pipeline] has unknown key(s) {', '.join(unknown)};"
@@ -236,6 +239,8 @@ class Pipeline:
         self._step_args: tuple[Any, ...] | None = None  # compiled step's arguments (cache)
         self._t_prev_step = -math.inf  # step()'s guard: last t, last finite value per channel
         self._last_finite: dict[str, tuple[float, float]] = {}
+        self._t_start = math.nan  # first sample time (validity flags' convergence)
+        self._held_now = False  # step() held a dropped input in this sample
         self._step_names: list[str] = []
         self._step_rates: tuple[bool, bool] | None = None  # rate channels last noted
 
@@ -253,6 +258,8 @@ class Pipeline:
         self._friction_state[:] = np.nan
         self._t_prev_step = -math.inf
         self._last_finite = {}
+        self._t_start = math.nan  # first sample time, for the validity flags' convergence
+        self._held_now = False  # step() held a dropped input in this sample
         self._t_gnss = np.nan
         self._fused_is_reference = True
         self._step_args = None
@@ -434,6 +441,11 @@ class Pipeline:
             slip_angle, np.fmax(sig[:, 1], self.config.friction.sigma_vy_floor)
             / np.maximum(np.abs(v[:, 0]), 1.0), c_y, self._friction_kx,
             self._friction_prm, self._friction_state)
+        if math.isnan(self._t_start):
+            self._t_start = float(u.t[0])
+        res["validity"] = validity(u.t, self._t_start, v[:, 0], slip_ratio, slip_angle,
+                                   u.delta[:, :2], u.ay, np.full(n, self._held_now),
+                                   self.config.validity)
         return res
 
     @staticmethod
@@ -462,6 +474,7 @@ class Pipeline:
             groups.append((names("confidence"), res["confidence"]))
         groups += [(names("mu"), res["mu"]), (names("sigma_mu"), res["sigma_mu"]),
                    ([f"mu_{c}_excited" for c in CORNERS], res["mu_excited"])]
+        groups += [([k], v) for k, v in res["validity"].items()]
         return groups
 
     def _hold_gaps(self, sample: Mapping[str, float]) -> Mapping[str, float]:
@@ -488,6 +501,7 @@ class Pipeline:
                     "or leave the channel out")
             fixed = dict(sample) if fixed is None else fixed
             fixed[key] = last[1]
+        self._held_now = fixed is not None
         return sample if fixed is None else fixed
 
     def run(self, log: pd.DataFrame, chunk: int = CHUNK,
@@ -597,6 +611,13 @@ class Pipeline:
         for j, c in enumerate(CORNERS):
             row[f"mu_{c}"], row[f"sigma_mu_{c}"] = float(mu[0, j]), float(smu[0, j])
             row[f"mu_{c}_excited"] = float(ex[0, j])
+        if math.isnan(self._t_start):
+            self._t_start = row["t"]
+        flags = validity(np.array([row["t"]]), self._t_start, np.array([row["vx"]]),
+                         one("slip_ratio"), one("slip_angle"),
+                         np.array([[vec[15], vec[16]]]), np.array([sample["ay"]]),
+                         np.array([self._held_now]), self.config.validity)
+        row.update({k: float(v[0]) for k, v in flags.items()})
         return row
 
 

@@ -1,0 +1,74 @@
+"""Validity flags (issue 15): each reason raised exactly where its condition holds, in run()
+and step() alike."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from vestim.estimators.validity import (
+    HIGH_SLIP,
+    INPUT_FAULTY,
+    NOT_CONVERGED,
+    REVERSE,
+    STANDSTILL,
+    UNOBSERVABLE,
+    ValidityParams,
+    validity,
+)
+
+
+def _flags(vx, slip=0.0, alpha=0.0, delta=0.05, ay=2.0, held=False, t=5.0):
+    one = lambda v: np.array([v], dtype=float)  # noqa: E731
+    return validity(one(t), 0.0, one(vx), np.full((1, 4), slip), np.full((1, 4), alpha),
+                    np.full((1, 2), delta), one(ay), np.array([held]), ValidityParams())
+
+
+@pytest.mark.parametrize(("kw", "group", "bit"), [
+    ({"t": 1.0}, "velocity", NOT_CONVERGED),
+    ({"vx": 0.2}, "slip", STANDSTILL),
+    ({"vx": -3.0}, "velocity", REVERSE),
+    ({"slip": 0.3}, "velocity", HIGH_SLIP),
+    ({"alpha": -0.2}, "velocity", HIGH_SLIP),
+    ({"delta": 0.0, "ay": 0.0}, "force", UNOBSERVABLE),
+    ({"held": True}, "force", INPUT_FAULTY),
+])
+def test_each_reason(kw: dict, group: str, bit: int):
+    args = {"vx": 20.0, **kw}
+    out = _flags(**args)
+    assert int(out[f"reason_{group}"][0]) & bit
+    assert out[f"valid_{group}"][0] == 0.0
+
+
+def test_a_clean_row_is_valid_everywhere_and_bits_stay_in_their_groups():
+    out = _flags(20.0)
+    assert all(out[f"valid_{g}"][0] == 1.0 for g in ("velocity", "force", "slip"))
+    hs = _flags(20.0, slip=0.3)  # high slip concerns velocity, not the force or slip rows
+    assert hs["valid_force"][0] == 1.0 and hs["valid_slip"][0] == 1.0
+    assert hs["valid_velocity"][0] == 0.0
+
+
+def test_pipeline_writes_the_flags_and_step_matches_run():
+    from vestim.io import load_vehicle
+    from vestim.pipeline import Pipeline
+    from vestim.sim import get_maneuver, simulate
+
+    veh = load_vehicle("hashemi_suv")
+    full = simulate(get_maneuver("step_steer"), veh, seed=0).iloc[:700]
+    log = full[[c for c in full.columns if not c.startswith("ref_")]]
+    est = Pipeline(veh).run(log)
+    t = est["t"].to_numpy()
+    # The first 2 s are "not converged". The simulator's step steer then drives the tires to
+    # 8° of slip angle (0.14 rad): every row whose true slip angle exceeds 0.16 rad must be
+    # flagged high slip, and a valid row has none beyond 0.15 rad.
+    assert np.all(est["reason_velocity"].to_numpy()[t - t[0] < 2.0].astype(int) & NOT_CONVERGED)
+    true_alpha = np.abs(full[[f"ref_slip_angle_{c}" for c in ("fl", "fr", "rl", "rr")]]
+                        .to_numpy()).max(axis=1)
+    reason = est["reason_velocity"].to_numpy().astype(int)
+    assert np.all(reason[true_alpha > 0.16] & HIGH_SLIP)
+    valid = est["valid_velocity"].to_numpy() == 1.0
+    assert valid.any() and true_alpha[valid].max() <= 0.15
+    pipe = Pipeline(veh)
+    rows = [pipe.step(s) for s in log.to_dict("records")]
+    for k in ("valid_velocity", "reason_velocity", "reason_force", "valid_slip"):
+        np.testing.assert_array_equal([r[k] for r in rows], est[k].to_numpy())
