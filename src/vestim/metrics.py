@@ -443,10 +443,11 @@ def coverage_markdown(table: pd.DataFrame) -> str:
     """:func:`coverage`'s table as Markdown (shares in percent)."""
     lines = ["| channel | unit | within 1σ % | within 2σ % | median σ | RMSE | samples |",
              "|---|---|---:|---:|---:|---:|---:|"]
-    for r in table.itertuples(index=False):
-        lines.append(f"| {r.channel} | {r.unit} | {_sig(100 * r.within_1sigma, fixed=1)} | "
-                     f"{_sig(100 * r.within_2sigma, fixed=1)} | {_sig(r.median_sigma)} | "
-                     f"{_sig(r.rmse)} | {r.samples} |")
+    for r in table.to_dict("records"):
+        lines.append(f"| {r['channel']} | {r['unit']} | "
+                     f"{_sig(100 * float(r['within_1sigma']), fixed=1)} | "
+                     f"{_sig(100 * float(r['within_2sigma']), fixed=1)} | "
+                     f"{_sig(r['median_sigma'])} | {_sig(r['rmse'])} | {r['samples']} |")
     return "\n".join(lines)
 
 

@@ -63,6 +63,7 @@ from vestim.estimators.force.longitudinal import METHODS as FORCE_METHODS
 from vestim.estimators.friction import FrictionParams, corner_kx, friction_params, friction_potential
 from vestim.estimators.fusion import FUSION_METHODS, FusionParams, confidences, fuse
 from vestim.estimators.validity import ValidityParams, validity
+from vestim.estimators.validity import output_names as validity_names
 from vestim.estimators.velocity.corner import CornerVelocityEstimator, CornerVelocityInput
 from vestim.estimators.velocity.kinematic import KinematicIntegrator
 from vestim.estimators.velocity.lpv_observer import GainSchedule as LPVGains
@@ -443,9 +444,9 @@ class Pipeline:
             self._friction_prm, self._friction_state)
         if math.isnan(self._t_start):
             self._t_start = float(u.t[0])
-        res["validity"] = validity(u.t, self._t_start, v[:, 0], slip_ratio, slip_angle,
-                                   u.delta[:, :2], u.ay, np.full(n, self._held_now),
-                                   self.config.validity)
+        res.update(validity(u.t, self._t_start, v[:, 0], slip_ratio, slip_angle,
+                            u.delta[:, :2], u.ay, np.full(n, self._held_now),
+                            self.config.validity))
         return res
 
     @staticmethod
@@ -474,7 +475,7 @@ class Pipeline:
             groups.append((names("confidence"), res["confidence"]))
         groups += [(names("mu"), res["mu"]), (names("sigma_mu"), res["sigma_mu"]),
                    ([f"mu_{c}_excited" for c in CORNERS], res["mu_excited"])]
-        groups += [([k], v) for k, v in res["validity"].items()]
+        groups += [([k], res[k]) for k in validity_names()]
         return groups
 
     def _hold_gaps(self, sample: Mapping[str, float]) -> Mapping[str, float]:
