@@ -60,9 +60,17 @@ from vestim.estimators.force.estimator import (
     normalised,
 )
 from vestim.estimators.force.longitudinal import METHODS as FORCE_METHODS
-from vestim.estimators.friction import FrictionParams, corner_kx, friction_params, friction_potential
+from vestim.estimators.friction import (
+    FrictionParams,
+    corner_kx,
+    friction_kernel,
+    friction_params,
+    friction_potential,
+)
 from vestim.estimators.fusion import FUSION_METHODS, FusionParams, confidences, fuse
-from vestim.estimators.validity import ValidityParams, validity
+from vestim.estimators.validity import GROUPS as VALIDITY_GROUPS
+from vestim.estimators.validity import MASKS as VALIDITY_MASKS
+from vestim.estimators.validity import ValidityParams, validity, validity_kernel, validity_params
 from vestim.estimators.validity import output_names as validity_names
 from vestim.estimators.velocity.corner import CornerVelocityEstimator, CornerVelocityInput
 from vestim.estimators.velocity.kinematic import KinematicIntegrator
@@ -242,6 +250,7 @@ class Pipeline:
         self._last_finite: dict[str, tuple[float, float]] = {}
         self._t_start = math.nan  # first sample time (validity flags' convergence)
         self._held_now = False  # step() held a dropped input in this sample
+        self._post: tuple[Any, ...] | None = None  # _fast_post's index arrays and buffers
         self._step_names: list[str] = []
         self._step_rates: tuple[bool, bool] | None = None  # rate channels last noted
 
@@ -601,25 +610,40 @@ class Pipeline:
         row = dict(zip(self._step_names, out.tolist(), strict=True))
         row["radius_scale"] = 1.0  # no gnss_speed on this path
         row["gnss_latency"] = 0.0
-        one = lambda q: np.array([[row[f"{q}_{c}"] for c in CORNERS]])  # noqa: E731
-        mu, smu, ex = friction_potential(
-            np.array([row["t"]]), one("fx"), one("fy"), one("fz"), one("sigma_fx"),
-            one("sigma_fy"), one("slip_ratio"), one("slip_angle"),
-            np.array([np.fmax(row["sigma_vy"], self.config.friction.sigma_vy_floor)
-                      / max(abs(row["vx"]), 1.0)]),
-            np.array([row["cornering_stiffness"]]), self._friction_kx, self._friction_prm,
-            self._friction_state)
+        self._fast_post(out, vec, float(sample["ay"]), row)
+        return row
+
+    def _fast_post(self, out: np.ndarray, vec: list[float], ay: float,
+                   row: dict[str, float]) -> None:
+        """The friction and validity stages for one sample of the compiled path, on buffers
+        made once (the same kernels as :meth:`_advance`)."""
+        if self._post is None:
+            at = {name: j for j, name in enumerate(self._step_names)}
+            idx = {q: np.array([at[f"{q}_{c}"] for c in CORNERS])
+                   for q in ("fx", "fy", "fz", "sigma_fx", "sigma_fy", "slip_ratio", "slip_angle")}
+            self._post = (idx, at, np.empty((1, 4)), np.empty((1, 4)), np.empty((1, 4)),
+                          np.empty((1, 3)), np.empty((1, 3)), validity_params(self.config.validity))
+        idx, at, mu, smu, ex, valid, reason, vprm = self._post
+        t = out[at["t"]:at["t"] + 1]
+        load = np.maximum(out[idx["fz"]], 1.0)[None, :]
+        sig_a = max(out[at["sigma_vy"]], self.config.friction.sigma_vy_floor) / max(
+            abs(out[at["vx"]]), 1.0)
+        sr, sa = out[idx["slip_ratio"]][None, :], out[idx["slip_angle"]][None, :]
+        friction_kernel(t, out[idx["fx"]][None, :] / load, out[idx["fy"]][None, :] / load,
+                        np.hypot(out[idx["sigma_fx"]], out[idx["sigma_fy"]])[None, :] / load,
+                        sr, sa, np.array([sig_a if math.isfinite(sig_a) else 0.0]),
+                        out[at["cornering_stiffness"]:at["cornering_stiffness"] + 1],
+                        self._friction_kx, self._friction_prm, self._friction_state, mu, smu, ex)
+        if math.isnan(self._t_start):
+            self._t_start = float(t[0])
+        validity_kernel(t, self._t_start, out[at["vx"]:at["vx"] + 1], sr, sa,
+                        np.array([[vec[15], vec[16]]]), np.array([ay]),
+                        np.array([self._held_now]), vprm, VALIDITY_MASKS, valid, reason)
         for j, c in enumerate(CORNERS):
             row[f"mu_{c}"], row[f"sigma_mu_{c}"] = float(mu[0, j]), float(smu[0, j])
             row[f"mu_{c}_excited"] = float(ex[0, j])
-        if math.isnan(self._t_start):
-            self._t_start = row["t"]
-        flags = validity(np.array([row["t"]]), self._t_start, np.array([row["vx"]]),
-                         one("slip_ratio"), one("slip_angle"),
-                         np.array([[vec[15], vec[16]]]), np.array([sample["ay"]]),
-                         np.array([self._held_now]), self.config.validity)
-        row.update({k: float(v[0]) for k, v in flags.items()})
-        return row
+        for j, g in enumerate(VALIDITY_GROUPS):
+            row[f"valid_{g}"], row[f"reason_{g}"] = float(valid[0, j]), float(reason[0, j])
 
 
 def estimate(

@@ -27,6 +27,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+from numba import njit
 
 NOT_CONVERGED, STANDSTILL, REVERSE, HIGH_SLIP, UNOBSERVABLE, INPUT_FAULTY = 1, 2, 4, 8, 16, 32
 REASONS: dict[int, str] = {NOT_CONVERGED: "not converged", STANDSTILL: "standstill",
@@ -63,6 +64,46 @@ def output_names() -> list[str]:
     return [n for g in GROUPS for n in (f"valid_{g}", f"reason_{g}")]
 
 
+def validity_params(p: ValidityParams) -> np.ndarray:
+    """Pack :class:`ValidityParams` for :func:`validity_kernel` (field order)."""
+    return np.array([p.converge_s, p.standstill_speed, p.high_slip_ratio, p.high_slip_angle,
+                     p.straight_delta, p.straight_ay])
+
+
+MASKS = np.array(list(GROUPS.values()), dtype=np.int64)
+"""The groups' reason masks, in :data:`GROUPS` order (an argument of :func:`validity_kernel`)."""
+
+
+@njit(cache=True)
+def validity_kernel(t: np.ndarray, t_start: float, vx: np.ndarray, slip_ratio: np.ndarray,
+                    slip_angle: np.ndarray, delta: np.ndarray, ay: np.ndarray,
+                    held: np.ndarray, prm: np.ndarray, masks: np.ndarray,
+                    valid: np.ndarray, reason: np.ndarray) -> None:
+    """The flags of the module docstring for a block of samples (see :func:`validity`);
+    ``valid``, ``reason`` (n, groups) are written, one column per :data:`GROUPS` entry."""
+    converge, still, high_s, high_a, straight_d, straight_ay = (
+        prm[0], prm[1], prm[2], prm[3], prm[4], prm[5])
+    for k in range(t.shape[0]):
+        bits = 0
+        if t[k] - t_start < converge:
+            bits |= NOT_CONVERGED
+        if abs(vx[k]) < still:
+            bits |= STANDSTILL
+        if vx[k] <= -still:
+            bits |= REVERSE
+        for c in range(4):  # NaN (not known) compares False: no flag
+            if abs(slip_ratio[k, c]) > high_s or abs(slip_angle[k, c]) > high_a:
+                bits |= HIGH_SLIP
+        if max(abs(delta[k, 0]), abs(delta[k, 1])) < straight_d and abs(ay[k]) < straight_ay:
+            bits |= UNOBSERVABLE
+        if held[k]:
+            bits |= INPUT_FAULTY
+        for g in range(masks.shape[0]):
+            m = bits & masks[g]
+            valid[k, g] = 1.0 if m == 0 else 0.0
+            reason[k, g] = float(m)
+
+
 def validity(t: np.ndarray, t_start: float, vx: np.ndarray, slip_ratio: np.ndarray,
              slip_angle: np.ndarray, delta: np.ndarray, ay: np.ndarray, input_held: np.ndarray,
              p: ValidityParams) -> dict[str, np.ndarray]:
@@ -78,20 +119,15 @@ def validity(t: np.ndarray, t_start: float, vx: np.ndarray, slip_ratio: np.ndarr
     Returns:
         ``valid_<group>`` (1.0/0.0) and ``reason_<group>`` (the bit mask as a float), (n,).
     """
-    bits = np.zeros(t.shape[0], dtype=np.int64)
-    bits |= np.where(t - t_start < p.converge_s, NOT_CONVERGED, 0)
-    bits |= np.where(np.abs(vx) < p.standstill_speed, STANDSTILL, 0)
-    bits |= np.where(vx <= -p.standstill_speed, REVERSE, 0)
-    with np.errstate(invalid="ignore"):
-        slipping = (np.nanmax(np.abs(np.nan_to_num(slip_ratio, nan=0.0)), axis=1) > p.high_slip_ratio) | (
-            np.nanmax(np.abs(np.nan_to_num(slip_angle, nan=0.0)), axis=1) > p.high_slip_angle)
-    bits |= np.where(slipping, HIGH_SLIP, 0)
-    straight = (np.max(np.abs(delta), axis=1) < p.straight_delta) & (np.abs(ay) < p.straight_ay)
-    bits |= np.where(straight, UNOBSERVABLE, 0)
-    bits |= np.where(input_held, INPUT_FAULTY, 0)
+    n = t.shape[0]
+    valid, reason = np.empty((n, len(GROUPS))), np.empty((n, len(GROUPS)))
+    c = np.ascontiguousarray
+    validity_kernel(c(t, dtype=np.float64), float(t_start), c(vx, dtype=np.float64),
+                    c(slip_ratio, dtype=np.float64), c(slip_angle, dtype=np.float64),
+                    c(delta, dtype=np.float64), c(ay, dtype=np.float64),
+                    c(input_held, dtype=np.bool_), validity_params(p), MASKS, valid, reason)
     out: dict[str, np.ndarray] = {}
-    for group, allowed in GROUPS.items():
-        mask = bits & allowed
-        out[f"valid_{group}"] = (mask == 0).astype(np.float64)
-        out[f"reason_{group}"] = mask.astype(np.float64)
+    for j, group in enumerate(GROUPS):
+        out[f"valid_{group}"] = valid[:, j]
+        out[f"reason_{group}"] = reason[:, j]
     return out
