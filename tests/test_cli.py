@@ -159,3 +159,33 @@ def test_cache_is_cold_until_numba_writes_an_index(tmp_path, monkeypatch):
     (tmp_path / "cache" / "x").mkdir(parents=True)
     (tmp_path / "cache" / "x" / "k.nbi").write_bytes(b"")
     assert not _cache.is_cold()
+
+
+def test_estimate_metadata_says_how_it_was_made(tmp_path):
+    """Version, full configuration and the vehicle file's hash go into the output (issue 15)."""
+    import hashlib
+    import json
+
+    from vestim import __version__
+
+    src = _short_log(tmp_path)
+    veh = tmp_path / "car.toml"
+    from importlib import resources
+    veh.write_bytes((resources.files("vestim") / "data" / "vehicles" / "hashemi_suv.toml").read_bytes())
+    out = tmp_path / "est.parquet"
+    result = runner.invoke(app, ["estimate", str(src), "--vehicle", str(veh), "--out", str(out)])
+    assert result.exit_code == 0, result.output
+    meta = read_log(out).attrs
+    assert meta["vestim_version"] == __version__
+    assert meta["vehicle_sha256"] == hashlib.sha256(veh.read_bytes()).hexdigest()
+    assert json.loads(meta["config"])["velocity"] == "fused"
+
+
+def test_score_coverage_table(tmp_path):
+    sim = tmp_path / "sim.parquet"
+    est = tmp_path / "est.parquet"
+    assert runner.invoke(app, ["simulate", "lc_wet", "--out", str(sim)]).exit_code == 0
+    assert runner.invoke(app, ["estimate", str(sim), "--out", str(est)]).exit_code == 0
+    result = runner.invoke(app, ["score", str(est), str(sim), "--coverage"])
+    assert result.exit_code == 0, result.output
+    assert "| vx | m/s |" in result.output and "within 1σ %" in result.output

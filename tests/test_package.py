@@ -29,7 +29,7 @@ def test_version_matches_the_installed_metadata():
 
 
 def test_top_level_api_names_the_main_entry_points():
-    for name in ("estimate", "Pipeline", "PipelineConfig", "load_vehicle", "read_log"):
+    for name in ("estimate", "Pipeline", "PipelineConfig", "load_vehicle", "read_log", "calibrate"):
         assert callable(getattr(vestim, name)), name
     with pytest.raises(AttributeError, match="no attribute 'nope'"):
         _ = vestim.nope  # type: ignore[attr-defined]

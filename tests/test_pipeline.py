@@ -231,9 +231,9 @@ def test_run_reports_progress_and_the_result_does_not_depend_on_it():
 
 
 def test_calibrated_file_undoes_the_sensor_errors_it_states():
-    """A log with a 2 % large front-left radius, a +0.1 m/s² ax bias and a 0.01 rad steering
-    offset, estimated with a file whose [calibration] states exactly those, gives the clean
-    log's estimate (to float rounding); run and step agree on it."""
+    """A log with a 2 % large front-left radius, an accelerometer reading 2 % high and a
+    0.01 rad steering offset, estimated with a file whose [calibration] states exactly those,
+    gives the clean log's estimate (to float rounding); run and step agree on it."""
     from dataclasses import replace
 
     from vestim.io import load_vehicle
@@ -245,14 +245,15 @@ def test_calibrated_file_undoes_the_sensor_errors_it_states():
     clean = clean[[c for c in clean.columns if not c.startswith("ref_")]]
     bad = clean.copy()
     bad["omega_fl"] = bad["omega_fl"] / 1.02  # a larger wheel turns slower
-    bad["ax"] = bad["ax"] + 0.1
+    for c in ("ax", "ay", "az"):
+        bad[c] = bad[c] * 1.02
     for c in ("delta_fl", "delta_fr", "delta"):
         if c in bad:
             bad[c] = bad[c] + 0.01
     r = veh.body.wheel_radius
     cal = Calibration({
         "wheels": {"radius_fl": Identified(1.02 * r, 1e-4, True, "test", "m")},
-        "imu": {"bias_ax": Identified(0.1, 1e-3, True, "test", "m/s^2")},
+        "imu": {"accel_scale": Identified(1.02, 1e-3, True, "test", "-")},
         "steering": {"steering_offset": Identified(0.01, 1e-4, True, "test", "rad")}})
     calibrated = replace(veh, calibration=cal)
     want = Pipeline(veh).run(clean)
@@ -285,7 +286,7 @@ def test_a_nan_burst_through_step_is_held_not_propagated():
     vx = np.array([r["vx"] for r in rows])
     assert np.all(np.isfinite(vx))
     assert abs(vx[222] - clean["vx"].to_numpy()[222]) < 1e-3
-    with pytest.raises(LogFormatError, match="Pipeline.run input: column 'ax' is missing"):
+    with pytest.raises(LogFormatError, match=r"Pipeline\.run input: column 'ax' is missing"):
         Pipeline(veh).run(bad)
     long = log.copy()
     long.loc[100:300, "ax"] = np.nan  # 1 s: longer than HOLD_S

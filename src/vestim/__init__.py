@@ -35,6 +35,7 @@ _API = {
     "read_log": "vestim.io",
     "write_log": "vestim.io",
     "score": "vestim.metrics",
+    "calibrate": "vestim.design.calibrate",
     "VestimError": "vestim.errors",
 }
 

@@ -92,6 +92,23 @@ def _note_compiling() -> None:
             f"later runs load them from {_cache.cache_dir()}"))
 
 
+def _provenance(vehicle: str, config: Any) -> dict[str, str]:
+    """Output metadata that says how an estimate was made: vestim's version, the full
+    configuration, and a SHA-256 of the vehicle file's bytes (of the built-in's, by name)."""
+    import dataclasses
+    import hashlib
+    import json
+    from importlib import resources
+
+    from vestim import __version__
+
+    p = Path(vehicle)
+    data = (p.read_bytes() if p.is_file() else
+            (resources.files("vestim") / "data" / "vehicles" / f"{vehicle}.toml").read_bytes())
+    return {"vestim_version": __version__, "vehicle_sha256": hashlib.sha256(data).hexdigest(),
+            "config": json.dumps(dataclasses.asdict(config), default=str, sort_keys=True)}
+
+
 def _fail(exc: Exception) -> typer.Exit:
     # escape: a message naming an extra ("vestim[report]") is not Rich markup
     console.print(f"[red]error:[/red] {rich.markup.escape(str(exc))}")
@@ -214,6 +231,7 @@ def estimate_cmd(
             est = pipe.run(log, progress=progress)
         meta = {"vehicle": veh.name, "force": cfg.force, "normal": cfg.normal,
                 "velocity": cfg.velocity, "fusion": cfg.fusion, "source": str(log_path),
+                **_provenance(vehicle, cfg),
                 **pipe.force.input_sources,
                 "warnings": json.dumps([w.as_dict() for w in warnings], ensure_ascii=False)}
         path = write_log(est, out, metadata=meta)
@@ -302,22 +320,63 @@ def import_cmd(
                                      f"{len(log.columns) - 1} channels)"))
 
 
+@app.command("calibrate")
+def calibrate_cmd(
+    logs: Annotated[list[Path], typer.Argument(metavar="LOG...", help="Drive logs of one car "
+                                               "(.csv or .parquet); ref_ channels are ignored.")],
+    vehicle: Annotated[str, typer.Option("--vehicle", help="Base vehicle TOML file (or built-in "
+                                         "name); kept for what the logs do not excite.")],
+    out: Annotated[Path, typer.Option("--out", help="Calibrated vehicle file to write (.toml).")],
+    report: Annotated[Path | None, typer.Option("--report", help="Folder for calibration.md "
+                                                "and calibration.png.")] = None,
+) -> None:
+    """Identify wheel radii, IMU biases/scale/mounting, steering, body roll/pitch and tire
+    stiffness from ordinary logs; write CAR.toml with a one-σ and the evidence of each value."""
+    from vestim.design.calibrate import calibrate, write_calibrated, write_report
+    from vestim.io.files import check_output_path
+
+    try:
+        base = Path(vehicle)
+        check_output_path(out, inputs=[*logs, base if base.is_file() else None],
+                          suffixes=(".toml",))
+        with _Progress("calibrating") as progress:
+            result = calibrate(logs, vehicle, progress=lambda _step, f: progress(f))
+        path = write_calibrated(result, base if base.is_file() else None, out)
+        md = write_report(result, report) if report is not None else None
+    except (VestimError, ValueError, OSError) as exc:
+        raise _fail(exc) from None
+    values = result.values
+    idle = sorted(k for k, v in values.items() if not v.excited)
+    console.print(rich.markup.escape(
+        f"wrote {path}: {len(values) - len(idle)} values identified, {len(idle)} not excited"
+        + (f" ({', '.join(idle)})" if idle else "")
+        + (f"; report {md}" if md is not None else "")))
+
+
 @app.command("score")
 def score_cmd(
     estimate: Annotated[Path, typer.Argument(metavar="ESTIMATE", help="Log of estimates.")],
     reference: Annotated[Path, typer.Argument(metavar="REFERENCE",
                                               help="Log with ref_ channels (e.g. a simulator log).")],
     json_out: Annotated[bool, typer.Option("--json", help="Print JSON instead of a table.")] = False,
+    cover: Annotated[bool, typer.Option("--coverage", help="Instead: the share of samples within "
+                                        "1σ and 2σ of the reference, per channel with a σ.")]
+    = False,
 ) -> None:
     """NRMS (000's definition), RMSE and max error per channel against the ref_ channels."""
     from vestim.io import read_log
-    from vestim.metrics import score, to_json, to_markdown
+    from vestim.metrics import coverage, coverage_markdown, score, to_json, to_markdown
 
     try:
-        table = score(read_log(estimate), read_log(reference), estimate_name=str(estimate),
-                      reference_name=str(reference))
+        est, ref = read_log(estimate), read_log(reference)
+        names = {"estimate_name": str(estimate), "reference_name": str(reference)}
+        table = coverage(est, ref, **names) if cover else score(est, ref, **names)
     except (VestimError, ValueError, OSError) as exc:
         raise _fail(exc) from None
+    if cover:
+        typer.echo(table.to_json(orient="records", indent=2) if json_out
+                   else coverage_markdown(table))
+        return
     typer.echo(to_json(table) if json_out else to_markdown(table))
 
 

@@ -30,10 +30,10 @@ from vestim.errors import LogFormatError
 from vestim.io import channels as ch
 
 __all__ = [
+    "COVERAGE_COLUMNS",
     "FLOORS",
     "SCORE_COLUMNS",
     "ErrorStats",
-    "COVERAGE_COLUMNS",
     "channel_family",
     "coverage",
     "coverage_markdown",

@@ -54,8 +54,9 @@ def test_bad_tables_name_the_key(table: dict, match: str):
 
 
 def test_corrections_follow_the_file():
-    """radius 0.34 against the file's 0.33 scales ω by 34/33; bias then scale on ax; the
-    steering offset subtracted; a not-excited radius changes nothing; input unchanged."""
+    """radius 0.34 against the file's 0.33 scales ω by 34/33; ax divided by the scale (its
+    bias is reported, not applied); the steering offset subtracted; a not-excited radius
+    changes nothing; input unchanged."""
     df = pd.DataFrame({"t": [0.0, 0.01], "omega_fl": [30.0, 30.0], "omega_rr": [30.0, 30.0],
                        "ax": [1.05, 0.05], "ay": [0.0, 0.0], "delta": [0.01, 0.02]})
     before = df.copy()
@@ -63,7 +64,7 @@ def test_corrections_follow_the_file():
     pd.testing.assert_frame_equal(df, before)
     np.testing.assert_allclose(out["omega_fl"], 30.0 * 0.34 / 0.33)
     np.testing.assert_array_equal(out["omega_rr"], 30.0)
-    np.testing.assert_allclose(out["ax"], [1.0 / 0.98, 0.0], atol=1e-15)
+    np.testing.assert_allclose(out["ax"], [1.05 / 0.98, 0.05 / 0.98], atol=1e-15)
     np.testing.assert_allclose(out["delta"], [0.0, 0.01], atol=1e-15)
 
 

@@ -19,18 +19,22 @@ A value the logs did not excite keeps the base value, with ``excited_<key> = fal
 units are :data:`KEYS`. How the estimators use them (:func:`corrected_log` and the stages):
 
 - ``wheels``: each wheel's effective rolling radius; ``omega_<c>`` is scaled by
-  radius_<c> / ``[vehicle] wheel_radius`` before estimation.
-- ``imu``: biases (sensor axes, subtracted first), ``accel_scale`` (the accelerometer's
-  |g| reading / g; the specific force is divided by it) and the mounting rotation
+  radius_<c> / ``[vehicle] wheel_radius`` before estimation. ``radius_scale`` (their mean
+  over the file's radius) and ``gnss_latency`` (s, the GNSS receiver's latency found with
+  it) are reported.
+- ``imu``: biases (sensor axes; reported, not applied: a turn-on bias changes from drive
+  to drive, and the estimators find each log's online), ``accel_scale`` (the
+  accelerometer's |g| reading / g; the specific force is divided by it) and the mounting rotation
   ``mount_roll``, ``mount_pitch``, ``mount_yaw`` (rad; the convention of
   :func:`vestim.io.channel_map.mounting_matrix`) that takes sensor axes to body axes.
 - ``steering``: ``steering_offset`` (rad of road-wheel angle, subtracted) and
   ``steering_ratio`` (the car's steering-wheel/road-wheel ratio; road-wheel angles derived
   from the steering-wheel angle with ``[vehicle] steering_ratio`` are rescaled to it);
   ``understeer_gradient`` (rad per m/s²) is reported only.
-- ``body``: ``roll_gradient``, ``pitch_gradient`` (rad per m/s²): the attitude filter's
-  quasi-static roll and pitch (``vestim.estimators.force.normal``), as a stated
-  ``[suspension]`` would give them.
+- ``body``: ``roll_gradient`` = dφ/da_y and ``pitch_gradient`` = −dθ/da_x (rad per m/s²,
+  both positive on a car: it rolls out of a turn and its nose rises when accelerating): the
+  attitude filter's quasi-static roll and pitch (``vestim.estimators.force.normal``), as a
+  stated ``[suspension]`` would give them.
 - ``tire``: axle cornering stiffness ``cy_f``, ``cy_r`` (N/rad) — the prior of the online
   cornering-stiffness regression — and longitudinal slip stiffness ``cx_f``, ``cx_r`` (N per
   unit slip) — the friction stage's K_x; LuGre parameters identified from the logs are
@@ -50,7 +54,8 @@ import pandas as pd
 from vestim.errors import VehicleFileError
 
 KEYS: dict[str, dict[str, str]] = {
-    "wheels": {f"radius_{c}": "m" for c in ("fl", "fr", "rl", "rr")},
+    "wheels": {**{f"radius_{c}": "m" for c in ("fl", "fr", "rl", "rr")},
+               "radius_scale": "-", "gnss_latency": "s"},
     "imu": {"bias_ax": "m/s^2", "bias_ay": "m/s^2", "bias_az": "m/s^2",
             "bias_yaw_rate": "rad/s", "bias_roll_rate": "rad/s", "bias_pitch_rate": "rad/s",
             "accel_scale": "-", "mount_roll": "rad", "mount_pitch": "rad", "mount_yaw": "rad"},
@@ -250,9 +255,10 @@ def correct_columns(cols: dict[str, np.ndarray], cal: Calibration, *, wheel_radi
         return default if v is None else v
 
     acc, gyro = ("ax", "ay", "az"), ("roll_rate", "pitch_rate", "yaw_rate")
-    for name in (*acc, *gyro):
-        if name in cols:
-            cols[name] = cols[name] - imu(f"bias_{name}", 0.0)
+    # The biases are reported, not applied: an IMU's turn-on bias changes from drive to drive
+    # (the crossplant logs each have their own), and the estimators find the accelerometer
+    # and yaw-gyro biases of each log online. Applying another drive's bias made the
+    # hold-out check worse (docs/results.md, "Calibration hold-out").
     scale = imu("accel_scale", 1.0)
     for name in acc:
         if name in cols:

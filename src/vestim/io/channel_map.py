@@ -956,23 +956,10 @@ def _auto_mounting(cmap: ChannelMap, acc: np.ndarray | None, gyro: np.ndarray | 
                 "[imu] mounting \"auto\" without a [pose] needs the wheel speeds (omega_*) "
                 "for the direction of travel"
             )
-        up = gravity / np.linalg.norm(gravity)
-        # a = c + b·dω/dt + e·ω̄·r: b is the longitudinal axis (scaled by R), e the lateral
-        # one; fitting e too keeps turns out of b. The yaw rate is the sensor's z rate.
+        # The yaw rate is the sensor's z rate.
         r = (_lowpass(gyro[:, 2], rate) if gyro is not None
              else _lowpass(data["yaw_rate"], rate))
-        x = np.column_stack([np.ones(len(dw)), dw, w * r])
-        coef, *_ = np.linalg.lstsq(x, acc_f, rcond=None)
-        fwd = coef[1] - (coef[1] @ up) * up  # longitudinal response, made level
-        if not np.linalg.norm(fwd) > 0:
-            raise ChannelMapError("[imu] mounting \"auto\": the speed never changes; give the "
-                                  "yaw angle")
-        fwd /= np.linalg.norm(fwd)
-        left = np.cross(up, fwd)
-        # Sensor x in body axes is the first row of [fwd; left; up] (body ← sensor).
-        sx = np.array([fwd[0], left[0], up[0]])
-        pitch = math.degrees(math.asin(-float(sx[2])))
-        yaw = math.degrees(math.atan2(float(sx[1]), float(sx[0])))
+        pitch, yaw = wheel_travel_angles(acc_f, gravity, w, dw, r)
         how = {"pitch": "auto: gravity on straight, steady samples",
                "yaw": "auto: accelerometer regression on wheel-speed dω/dt"}
     if "pitch" not in cmap.mounting.auto:
@@ -982,6 +969,32 @@ def _auto_mounting(cmap: ChannelMap, acc: np.ndarray | None, gyro: np.ndarray | 
     roll = _roll_from_gravity(gravity, pitch, yaw)
     how["roll"] = "auto: gravity on straight, steady samples"
     return {"roll": roll, "pitch": pitch, "yaw": yaw}, how
+
+
+def wheel_travel_angles(acc_f: np.ndarray, gravity: np.ndarray, w: np.ndarray, dw: np.ndarray,
+                        r: np.ndarray) -> tuple[float, float]:
+    """(pitch_deg, yaw_deg) of the sensor from gravity and the accelerometer's response to dω/dt.
+
+    ``acc_f`` (n, 3) is the low-passed specific force in the sensor's axes (m/s²), ``gravity``
+    its mean on straight, steady samples (the body's up), ``w`` the low-passed mean wheel
+    speed (rad/s, or m/s), ``dw`` its derivative and ``r`` the low-passed yaw rate (rad/s).
+    a = c + b·dω/dt + e·ω̄·r: b is the longitudinal axis (scaled by R), e the lateral one;
+    fitting e too keeps turns out of b. b is made level (perpendicular to ``gravity``).
+    """
+    up = gravity / np.linalg.norm(gravity)
+    x = np.column_stack([np.ones(len(dw)), dw, w * r])
+    coef, *_ = np.linalg.lstsq(x, acc_f, rcond=None)
+    fwd = coef[1] - (coef[1] @ up) * up  # longitudinal response, made level
+    if not np.linalg.norm(fwd) > 0:
+        raise ChannelMapError("[imu] mounting \"auto\": the speed never changes; give the "
+                              "yaw angle")
+    fwd /= np.linalg.norm(fwd)
+    left = np.cross(up, fwd)
+    # Sensor x in body axes is the first row of [fwd; left; up] (body ← sensor).
+    sx = np.array([fwd[0], left[0], up[0]])
+    pitch = math.degrees(math.asin(-float(sx[2])))
+    yaw = math.degrees(math.atan2(float(sx[1]), float(sx[0])))
+    return pitch, yaw
 
 
 def _roll_from_gravity(m: np.ndarray, pitch_deg: float, yaw_deg: float) -> float:
