@@ -122,8 +122,10 @@ def test_batch_failures_identical_results_resume_and_config_change(logs: Path, t
         assert row["nrms_vx_pct"] == ref["vx"] and row["nrms_vy_pct"] == ref["vy"]
         for fam in ("fx", "fy", "fz"):
             assert row[f"nrms_{fam}_pct"] == max(ref[f"{fam}_{c}"] for c in ("fl", "fr", "rl", "rr"))
-        # The pipeline writes no valid_* columns (yet): no fraction, zero columns.
-        assert math.isnan(row["valid_fraction"]) and row["valid_columns"] == 0
+        # The pipeline writes valid_velocity, valid_force, valid_slip: the share of rows
+        # with all three set is the summary's valid fraction.
+        valid = want[["valid_velocity", "valid_force", "valid_slip"]].to_numpy().all(axis=1)
+        assert row["valid_columns"] == 3 and row["valid_fraction"] == float(valid.mean())
     # Failed rows have no output; summary.parquet holds the same table; summary.md names the errors.
     assert not output_path(logs / "corrupt.parquet", out).exists()
     stored = pd.read_parquet(out / "summary.parquet")

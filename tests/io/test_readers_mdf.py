@@ -369,6 +369,8 @@ def test_mdf_import_gives_the_parquet_estimate(log: pd.DataFrame, container: tup
         np.testing.assert_allclose(a, b, rtol=0, atol=1e-9 * scale, err_msg=c)
     for c in [c for c in est["mdf"].columns if f"sigma_{c}" in est["mdf"].columns]:
         sigma = float(est["parquet"][f"sigma_{c}"].median())
+        if c.startswith("mu_"):  # friction: NaN where not excited, compared above exactly
+            continue
         worst = float(np.max(np.abs(est["mdf"][c] - est["parquet"][c])))
         assert worst < 0.1 * sigma, f"{c}: {worst:.3g} vs sigma {sigma:.3g}"
 

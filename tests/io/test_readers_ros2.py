@@ -203,6 +203,13 @@ def test_bag_import_gives_the_parquet_estimate(log: pd.DataFrame, tmp_path: Path
     parquet = Pipeline(vehicle, PipelineConfig()).run(log.reset_index(drop=True))
     from_bag = Pipeline(vehicle, PipelineConfig()).run(imported)
     for c in [c for c in from_bag.columns if f"sigma_{c}" in from_bag.columns]:
+        if c.startswith("mu_"):  # friction potential: NaN where not excited
+            a, b = from_bag[c].to_numpy(), parquet[c].to_numpy()
+            both = np.isfinite(a) & np.isfinite(b)
+            assert np.mean(np.isfinite(a) != np.isfinite(b)) < 0.01, c  # flag flips at 1e-6
+            if both.any():
+                assert np.max(np.abs(a[both] - b[both])) < 1e-3, c
+            continue
         sigma = float(parquet[f"sigma_{c}"].median())
         worst = float(np.max(np.abs(from_bag[c] - parquet[c])))
         assert worst < 1e-3 * sigma, f"{c}: {worst:.3g} vs sigma {sigma:.3g}"
