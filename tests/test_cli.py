@@ -189,3 +189,16 @@ def test_score_coverage_table(tmp_path):
     result = runner.invoke(app, ["score", str(est), str(sim), "--coverage"])
     assert result.exit_code == 0, result.output
     assert "| vx | m/s |" in result.output and "within 1σ %" in result.output
+
+
+def test_non_finite_or_mistyped_options_are_clear_errors(tmp_path):
+    """Issue 15: `simulate --v0 inf` was a FloatingPointError traceback and `[pipeline]
+    gains = 5` was silently accepted."""
+    res = runner.invoke(app, ["simulate", "coast", "--v0", "inf", "--out", str(tmp_path / "a.csv")])
+    assert res.exit_code == 2 and "v0 = inf m/s must be in [0, 100]" in res.output
+    src = _short_log(tmp_path)
+    cfg = tmp_path / "cfg.toml"
+    cfg.write_text("[pipeline]\ngains = 5\n", encoding="utf-8")
+    res = runner.invoke(app, ["estimate", str(src), "--out", str(tmp_path / "e.parquet"),
+                              "--config", str(cfg)])
+    assert res.exit_code == 2 and "gains = 5: the path of a gains file" in res.output

@@ -165,7 +165,7 @@ def simulate_cmd(
         t0 = time.perf_counter()
         _, log = _run(m, vehicle, seed, rate, f"simulating {name}")
         path = write_log(log, out, metadata=log.attrs)
-    except (VestimError, ValueError, OSError) as exc:
+    except (VestimError, ValueError, OSError, FloatingPointError) as exc:
         raise _fail(exc) from None
     console.print(rich.markup.escape(f"wrote {path} ({len(log)} samples, {log['t'].iloc[-1]:.1f} "
                                      f"s simulated in {time.perf_counter() - t0:.2f} s)"))

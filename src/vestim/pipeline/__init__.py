@@ -168,6 +168,12 @@ class PipelineConfig:
         if self.fusion not in FUSION_METHODS:
             raise PipelineConfigError(f"fusion method {self.fusion!r}: use one of "
                                       f"{', '.join(FUSION_METHODS)}")
+        if self.gains is not None and not isinstance(self.gains, str):
+            raise PipelineConfigError(f"gains = {self.gains!r}: the path of a gains file "
+                                      "(a string) from `vestim design lpv`")
+        for name in ("force", "normal", "velocity", "fusion"):
+            if not isinstance(getattr(self, name), str):
+                raise PipelineConfigError(f"{name} = {getattr(self, name)!r} must be a string")
         if self.normal not in ("dynamic", "static"):
             raise PipelineConfigError(f"normal-load mode {self.normal!r}: use dynamic or static")
 

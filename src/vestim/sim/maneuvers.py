@@ -15,6 +15,7 @@ driver's would be: on another vehicle the same input gives another radius.
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable
 from dataclasses import dataclass, replace
 from typing import Any
@@ -330,10 +331,12 @@ def get_maneuver(name: str, *, mu: float | None = None, v0: float | None = None,
                             f"{', '.join(_FACTORIES)}")
     kwargs: dict[str, Any] = {}
     if mu is not None:
+        if not (math.isfinite(mu) and 0 < mu <= 2):
+            raise ManeuverError(f"road friction mu = {mu} must be in (0, 2]")
         kwargs["mu"] = mu
     if v0 is not None:
-        if v0 < 0:
-            raise ManeuverError(f"initial speed v0 = {v0} m/s must be >= 0")
+        if not (math.isfinite(v0) and 0 <= v0 <= 100):
+            raise ManeuverError(f"initial speed v0 = {v0} m/s must be in [0, 100]")
         kwargs["v0"] = v0
     try:
         m = _FACTORIES[name](**kwargs)
