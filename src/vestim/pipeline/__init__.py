@@ -63,14 +63,13 @@ from vestim.estimators.force.longitudinal import METHODS as FORCE_METHODS
 from vestim.estimators.friction import (
     FrictionParams,
     corner_kx,
-    friction_kernel,
     friction_params,
     friction_potential,
 )
 from vestim.estimators.fusion import FUSION_METHODS, FusionParams, confidences, fuse
 from vestim.estimators.validity import GROUPS as VALIDITY_GROUPS
 from vestim.estimators.validity import MASKS as VALIDITY_MASKS
-from vestim.estimators.validity import ValidityParams, validity, validity_kernel, validity_params
+from vestim.estimators.validity import ValidityParams, validity, validity_params
 from vestim.estimators.validity import output_names as validity_names
 from vestim.estimators.velocity.corner import CornerVelocityEstimator, CornerVelocityInput
 from vestim.estimators.velocity.kinematic import KinematicIntegrator
@@ -253,7 +252,8 @@ class Pipeline:
         self._fused_is_reference = True  # the fused filter has not diverged from the plain one
         self._step_args: tuple[Any, ...] | None = None  # compiled step's arguments (cache)
         self._t_prev_step = -math.inf  # step()'s guard: last t, last finite value per channel
-        self._last_finite: dict[str, tuple[float, float]] = {}
+        # the last sample whose every value was finite, and its time (step()'s hold)
+        self._last_good: tuple[float, Mapping[str, float]] = (-math.inf, {})
         self._t_start = math.nan  # first sample time (validity flags' convergence)
         self._held_now = False  # step() held a dropped input in this sample
         self._post: tuple[Any, ...] | None = None  # _fast_post's index arrays and buffers
@@ -273,7 +273,7 @@ class Pipeline:
         self._radius_state[:] = 0.0
         self._friction_state[:] = np.nan
         self._t_prev_step = -math.inf
-        self._last_finite = {}
+        self._last_good = (-math.inf, {})
         self._t_start = math.nan  # first sample time, for the validity flags' convergence
         self._held_now = False  # step() held a dropped input in this sample
         self._t_gnss = np.nan
@@ -500,23 +500,31 @@ class Pipeline:
             raise LogFormatError(f"sample t = {sample.get('t')!r} after t = {self._t_prev_step!r}: "
                                  "t must be finite and strictly increasing, in seconds")
         self._t_prev_step = t
+        try:
+            clean = math.isfinite(sum(sample.values()))  # every value finite (the usual case)
+        except TypeError:
+            clean = False
+        if clean:
+            self._last_good = (t, dict(sample))  # a copy: a live loop may reuse its dict
+            self._held_now = False
+            return sample
         fixed: dict[str, float] | None = None
+        t_good, good = self._last_good
         for key, value in sample.items():
             if key in SPARSE or key.startswith(REF_PREFIX):
                 continue
             v = float(value)
             if math.isfinite(v):
-                self._last_finite[key] = (t, v)
                 continue
-            last = self._last_finite.get(key)
-            if last is None or t - last[0] > HOLD_S:
-                since = "the first sample" if last is None else f"t = {last[0]:.3f} s"
+            last = float(good.get(key, math.nan))
+            if not math.isfinite(last) or t - t_good > HOLD_S:
+                since = ("the first sample" if not good else f"t = {t_good:.3f} s")
                 raise LogFormatError(
                     f"sample at t = {t:.3f} s: channel {key!r} is {v} and has had no finite value "
                     f"since {since} (values are held for at most {HOLD_S} s); check the sensor "
                     "or leave the channel out")
             fixed = dict(sample) if fixed is None else fixed
-            fixed[key] = last[1]
+            fixed[key] = last
         self._held_now = fixed is not None
         return sample if fixed is None else fixed
 
@@ -553,9 +561,10 @@ class Pipeline:
         compiled call (:mod:`vestim.pipeline.online`); others through the general path. Both give
         the batch result.
 
-        A live feed drops values: a NaN or inf in a measured channel is replaced by that
-        channel's last finite value for up to :data:`HOLD_S` (one bad value must not make every
-        later row NaN); longer, or a non-finite or non-increasing ``t``, raises
+        A live feed drops values: a NaN or inf in a measured channel is replaced by its value
+        in the last sample whose every value was finite, for up to :data:`HOLD_S` (one bad
+        value must not make every later row NaN); longer, or a non-finite or non-increasing
+        ``t``, raises
         :class:`~vestim.errors.LogFormatError` naming the channel. ``gnss_speed`` is sparse:
         NaN means "no fix".
         """
@@ -625,26 +634,19 @@ class Pipeline:
         made once (the same kernels as :meth:`_advance`)."""
         if self._post is None:
             at = {name: j for j, name in enumerate(self._step_names)}
-            idx = {q: np.array([at[f"{q}_{c}"] for c in CORNERS])
-                   for q in ("fx", "fy", "fz", "sigma_fx", "sigma_fy", "slip_ratio", "slip_angle")}
-            self._post = (idx, at, np.empty((1, 4)), np.empty((1, 4)), np.empty((1, 4)),
-                          np.empty((1, 3)), np.empty((1, 3)), validity_params(self.config.validity))
-        idx, at, mu, smu, ex, valid, reason, vprm = self._post
-        t = out[at["t"]:at["t"] + 1]
-        load = np.maximum(out[idx["fz"]], 1.0)[None, :]
-        sig_a = max(out[at["sigma_vy"]], self.config.friction.sigma_vy_floor) / max(
-            abs(out[at["vx"]]), 1.0)
-        sr, sa = out[idx["slip_ratio"]][None, :], out[idx["slip_angle"]][None, :]
-        friction_kernel(t, out[idx["fx"]][None, :] / load, out[idx["fy"]][None, :] / load,
-                        np.hypot(out[idx["sigma_fx"]], out[idx["sigma_fy"]])[None, :] / load,
-                        sr, sa, np.array([sig_a if math.isfinite(sig_a) else 0.0]),
-                        out[at["cornering_stiffness"]:at["cornering_stiffness"] + 1],
-                        self._friction_kx, self._friction_prm, self._friction_state, mu, smu, ex)
+            ix = [at["t"], at["vx"], at["sigma_vy"], at["cornering_stiffness"]]
+            ix += [at[f"{q}_{c}"] for q in ("fx", "fy", "fz", "sigma_fx", "sigma_fy",
+                                            "slip_ratio", "slip_angle") for c in CORNERS]
+            self._post = (np.array(ix, dtype=np.int64), np.empty((1, 4)), np.empty((1, 4)),
+                          np.empty((1, 4)), np.empty((1, 3)), np.empty((1, 3)),
+                          validity_params(self.config.validity))
+        ix, mu, smu, ex, valid, reason, vprm = self._post
         if math.isnan(self._t_start):
-            self._t_start = float(t[0])
-        validity_kernel(t, self._t_start, out[at["vx"]:at["vx"] + 1], sr, sa,
-                        np.array([[vec[15], vec[16]]]), np.array([ay]),
-                        np.array([self._held_now]), vprm, VALIDITY_MASKS, valid, reason)
+            self._t_start = float(out[ix[0]])
+        online.post_step_kernel(out, ix, vec[15], vec[16], ay, self._held_now, self._t_start,
+                                self.config.friction.sigma_vy_floor, self._friction_prm,
+                                self._friction_kx, self._friction_state, vprm, VALIDITY_MASKS,
+                                mu, smu, ex, valid, reason)
         for j, c in enumerate(CORNERS):
             row[f"mu_{c}"], row[f"sigma_mu_{c}"] = float(mu[0, j]), float(smu[0, j])
             row[f"mu_{c}_excited"] = float(ex[0, j])

@@ -32,7 +32,9 @@ from vestim.estimators.force.normal import (
     normal_load_params,
     normal_loads_kernel,
 )
+from vestim.estimators.friction import friction_kernel
 from vestim.estimators.fusion.axle import adaptive_axle_kernel, fixed_axle_kernel
+from vestim.estimators.validity import validity_kernel
 from vestim.estimators.velocity.lugre_kf import KFParams, lugre_kf_kernel
 from vestim.estimators.velocity.reference import axle_slip_angles, reference_kernel
 from vestim.models.chassis import torque_less_rolling_resistance
@@ -324,3 +326,43 @@ def build_step(pipe: Pipeline) -> tuple[Any, ...] | None:
     velocity = (ref_prm, ref._x, ref._P, ref._hist, ref._state, fused, fus._x, fus._P,
                 fus._hist, fus._state, pstate)
     return (*force, *velocity, *kf, cfg.fusion == "adaptive", fusion_prm)
+
+
+@njit(cache=True)
+def post_step_kernel(out: np.ndarray, ix: np.ndarray, delta_l: float, delta_r: float, ay: float,
+                     held: bool, t_start: float, sigma_vy_floor: float, fprm: np.ndarray,
+                     fkx: np.ndarray, fstate: np.ndarray, vprm: np.ndarray, masks: np.ndarray,
+                     mu: np.ndarray, smu: np.ndarray, ex: np.ndarray, valid: np.ndarray,
+                     reason: np.ndarray) -> None:
+    """The friction and validity stages of one sample of :func:`step_kernel`'s output row.
+
+    ``ix`` holds the positions in ``out`` of t, v_x, σ_vy, the cornering stiffness, then per
+    corner F_x, F_y, F_z, σ_Fx, σ_Fy, slip ratio, slip angle (4 each). Same kernels as the
+    batch path (:func:`friction_kernel`, :func:`validity_kernel`), so step equals run.
+    """
+    t = np.empty(1)
+    t[0] = out[ix[0]]
+    vx = np.empty(1)
+    vx[0] = out[ix[1]]
+    mux, muy, su = np.empty((1, 4)), np.empty((1, 4)), np.empty((1, 4))
+    sr, sa = np.empty((1, 4)), np.empty((1, 4))
+    for c in range(4):
+        load = max(out[ix[12 + c]], 1.0)
+        mux[0, c] = out[ix[4 + c]] / load
+        muy[0, c] = out[ix[8 + c]] / load
+        su[0, c] = np.hypot(out[ix[16 + c]], out[ix[20 + c]]) / load
+        sr[0, c] = out[ix[24 + c]]
+        sa[0, c] = out[ix[28 + c]]
+    sig_a = np.empty(1)
+    s = max(out[ix[2]], sigma_vy_floor) / max(abs(vx[0]), 1.0)
+    sig_a[0] = s if np.isfinite(s) else 0.0
+    ky = np.empty(1)
+    ky[0] = out[ix[3]]
+    friction_kernel(t, mux, muy, su, sr, sa, sig_a, ky, fkx, fprm, fstate, mu, smu, ex)
+    delta = np.empty((1, 2))
+    delta[0, 0], delta[0, 1] = delta_l, delta_r
+    a = np.empty(1)
+    a[0] = ay
+    h = np.empty(1, dtype=np.bool_)
+    h[0] = held
+    validity_kernel(t, t_start, vx, sr, sa, delta, a, h, vprm, masks, valid, reason)
