@@ -233,11 +233,14 @@ def estimate_cmd(
                 "velocity": cfg.velocity, "fusion": cfg.fusion, "source": str(log_path),
                 **_provenance(vehicle, cfg),
                 **pipe.force.input_sources,
-                "warnings": json.dumps([w.as_dict() for w in warnings], ensure_ascii=False)}
+                "warnings": json.dumps([w.as_dict() for w in warnings], ensure_ascii=False),
+                "gaps": json.dumps(pipe.gaps)}
         path = write_log(est, out, metadata=meta)
     except (VestimError, ValueError, OSError) as exc:
         raise _fail(exc) from None
     esc = rich.markup.escape
+    for a, b in pipe.gaps:
+        console.print(esc(f"note: time gap {a:.3f} -> {b:.3f} s: the filters restarted after it"))
     for w in warnings:
         console.print(f"[yellow]warning:[/yellow] {esc(w.message)}")
     if meta.get("torque_source") != "measured":
