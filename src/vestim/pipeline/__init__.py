@@ -68,6 +68,8 @@ from vestim.estimators.friction import (
     friction_potential,
 )
 from vestim.estimators.fusion import FUSION_METHODS, FusionParams, confidences, fuse
+from vestim.estimators.health import HealthParams, health_params, wheel_health_kernel
+from vestim.estimators.health import new_state as new_health_state
 from vestim.estimators.validity import GROUPS as VALIDITY_GROUPS
 from vestim.estimators.validity import MASKS as VALIDITY_MASKS
 from vestim.estimators.validity import ValidityParams, validity, validity_params
@@ -159,6 +161,7 @@ class PipelineConfig:
     fusion_params: FusionParams = field(default_factory=FusionParams)
     friction: FrictionParams = field(default_factory=FrictionParams)
     validity: ValidityParams = field(default_factory=ValidityParams)
+    health: HealthParams = field(default_factory=HealthParams)
     gains: str | None = None
 
     def __post_init__(self) -> None:
@@ -189,7 +192,8 @@ class PipelineConfig:
         if not isinstance(table, dict):
             raise PipelineConfigError(f"{path}: no [pipeline] table")
         allowed = {f.name for f in fields(cls)} - {"reference", "fusion_params", "cornering",
-                                                "radius", "friction", "validity"}
+                                                "radius", "friction", "validity",
+                                                "health"}
         unknown = sorted(set(table) - allowed)
         if unknown:
             raise PipelineConfigError(f"{path}: [pipeline] has unknown key(s) {', '.join(unknown)};"
@@ -262,6 +266,11 @@ class Pipeline:
         self._held_now = False  # step() held a dropped input in this sample
         self._post: tuple[Any, ...] | None = None  # _fast_post's index arrays and buffers
         self.gaps: list[tuple[float, float]] = []  # time gaps (s) the filters restarted after
+        self._health_prm = health_params(self.config.health, vehicle.body.wheel_radius)
+        self._health_state = new_health_state()
+        # health and "input faulty" rows of the block _advance is working on (run and step)
+        self._chunk_faulty: np.ndarray | None = None
+        self._chunk_health: np.ndarray | None = None
         self._step_names: list[str] = []
         self._step_rates: tuple[bool, bool] | None = None  # rate channels last noted
 
@@ -279,6 +288,7 @@ class Pipeline:
         self._friction_state[:] = np.nan
         self._t_prev_step = -math.inf
         self._last_good = (-math.inf, {})
+        self._health_state = new_health_state()
         self._t_start = math.nan  # first sample time, for the validity flags' convergence
         self._held_now = False  # step() held a dropped input in this sample
         self._t_gnss = np.nan
@@ -464,8 +474,13 @@ class Pipeline:
             self._friction_prm, self._friction_state)
         if math.isnan(self._t_start):
             self._t_start = float(u.t[0])
+        if wheels:
+            res["health_omega"] = (self._chunk_health if self._chunk_health is not None
+                                   else np.ones((n, 4)))
         res.update(validity(u.t, self._t_start, v[:, 0], slip_ratio, slip_angle,
-                            u.delta[:, :2], u.ay, np.full(n, self._held_now),
+                            u.delta[:, :2], u.ay,
+                            self._chunk_faulty if self._chunk_faulty is not None
+                            else np.full(n, self._held_now),
                             self.config.validity))
         return res
 
@@ -496,7 +511,30 @@ class Pipeline:
         groups += [(names("mu"), res["mu"]), (names("sigma_mu"), res["sigma_mu"]),
                    ([f"mu_{c}_excited" for c in CORNERS], res["mu_excited"])]
         groups += [([k], res[k]) for k in validity_names()]
+        if "health_omega" in res:
+            groups.append(([f"health_omega_{c}" for c in CORNERS], res["health_omega"]))
         return groups
+
+    def _wheel_health(self, sample: Mapping[str, float]) -> Mapping[str, float]:
+        """:mod:`vestim.estimators.health` on one sample (the kernel and state of run())."""
+        if not all(f"omega_{c}" in sample for c in CORNERS):
+            self._chunk_faulty = np.array([self._held_now])
+            self._chunk_health = None
+            return sample
+        w = np.array([[float(sample[f"omega_{c}"]) for c in CORNERS]])
+        out, health = np.empty((1, 4)), np.empty((1, 4))
+        wheel_health_kernel(np.array([float(sample["t"])]), w, self._health_prm,
+                            self._health_state, out, health)
+        self._chunk_health = health
+        bad = bool(np.any(health == 0.0))
+        self._held_now = self._held_now or bad
+        self._chunk_faulty = np.array([self._held_now])
+        if not bad:
+            return sample
+        fixed = dict(sample)
+        for j, c in enumerate(CORNERS):
+            fixed[f"omega_{c}"] = float(out[0, j])
+        return fixed
 
     def _hold_gaps(self, sample: Mapping[str, float]) -> Mapping[str, float]:
         """:meth:`step`'s guard against dropped values (see there)."""
@@ -558,10 +596,17 @@ class Pipeline:
         n = u.t.shape[0]
         cuts = [0, *(int(i) + 1 for i in np.flatnonzero(np.diff(u.t) > GAP_S)), n]
         self.gaps = [(float(u.t[i - 1]), float(u.t[i])) for i in cuts[1:-1]]
+        omega, health = np.empty_like(u.omega), np.empty_like(u.omega)
+        for s_, e in itertools.pairwise(cuts):  # the health state restarts at a gap too
+            wheel_health_kernel(u.t[s_:e], np.ascontiguousarray(u.omega[s_:e]),
+                                self._health_prm, new_health_state(), omega[s_:e], health[s_:e])
+        u = replace(u, omega=omega)
+        faulty = np.any(health == 0.0, axis=1)
 
         def advance(a: int, stop: int) -> list[ColumnGroup]:
             if a in cuts[1:-1]:  # the first sample after a gap: start again
                 self.reset()
+            self._chunk_faulty, self._chunk_health = faulty[a:stop], health[a:stop]
             part = _slice_inputs(u, a, stop)
             groups = self._groups(part.t, self._advance(part))
             if progress is not None:
@@ -570,7 +615,10 @@ class Pipeline:
 
         spans = ((a, min(a + chunk, e)) for s_, e in itertools.pairwise(cuts)
                  for a in range(s_, max(e, s_ + 1), chunk))
-        return frame_from_chunks((advance(a, b) for a, b in spans), n)
+        try:
+            return frame_from_chunks((advance(a, b) for a, b in spans), n)
+        finally:
+            self._chunk_faulty = self._chunk_health = None
 
     def step(self, sample: Mapping[str, float]) -> dict[str, float]:
         """Advance by one sample (mapping of the log's column names); return that row.
@@ -592,6 +640,7 @@ class Pipeline:
             self.reset()  # as run() does after a gap
             self.gaps.append(gap)
         sample = self._hold_gaps(sample)
+        sample = self._wheel_health(sample)
         cal = self.vehicle.calibration
         if cal is not None and cal.groups:
             b = self.vehicle.body
@@ -675,6 +724,9 @@ class Pipeline:
             row[f"mu_{c}_excited"] = float(ex[0, j])
         for j, g in enumerate(VALIDITY_GROUPS):
             row[f"valid_{g}"], row[f"reason_{g}"] = float(valid[0, j]), float(reason[0, j])
+        health = self._chunk_health
+        for j, c in enumerate(CORNERS):
+            row[f"health_omega_{c}"] = 1.0 if health is None else float(health[0, j])
 
 
 def estimate(
