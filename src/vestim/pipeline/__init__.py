@@ -268,6 +268,7 @@ class Pipeline:
         self.gaps: list[tuple[float, float]] = []  # time gaps (s) the filters restarted after
         self._health_prm = health_params(self.config.health, vehicle.body.wheel_radius)
         self._health_state = new_health_state()
+        self._health_buf = (np.empty(1), np.empty((1, 4)), np.empty((1, 4)), np.empty((1, 4)))
         # health and "input faulty" rows of the block _advance is working on (run and step)
         self._chunk_faulty: np.ndarray | None = None
         self._chunk_health: np.ndarray | None = None
@@ -517,16 +518,19 @@ class Pipeline:
 
     def _wheel_health(self, sample: Mapping[str, float]) -> Mapping[str, float]:
         """:mod:`vestim.estimators.health` on one sample (the kernel and state of run())."""
-        if not all(f"omega_{c}" in sample for c in CORNERS):
+        tb, w, out, health = self._health_buf
+        try:
+            w[0, 0], w[0, 1] = float(sample["omega_fl"]), float(sample["omega_fr"])
+            w[0, 2], w[0, 3] = float(sample["omega_rl"]), float(sample["omega_rr"])
+        except KeyError:  # no wheel speeds: nothing to check
             self._chunk_faulty = np.array([self._held_now])
             self._chunk_health = None
             return sample
-        w = np.array([[float(sample[f"omega_{c}"]) for c in CORNERS]])
-        out, health = np.empty((1, 4)), np.empty((1, 4))
-        wheel_health_kernel(np.array([float(sample["t"])]), w, self._health_prm,
-                            self._health_state, out, health)
+        tb[0] = float(sample["t"])
+        wheel_health_kernel(tb, w, self._health_prm, self._health_state, out, health)
         self._chunk_health = health
-        bad = bool(np.any(health == 0.0))
+        h = health[0]
+        bad = h[0] + h[1] + h[2] + h[3] < 4.0
         self._held_now = self._held_now or bad
         self._chunk_faulty = np.array([self._held_now])
         if not bad:
