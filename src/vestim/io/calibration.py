@@ -178,7 +178,9 @@ def parse_calibration(table: Any) -> Calibration:
                        str(table.get("vestim_version", "")))
 
 
-def _toml_value(v: Any) -> str:
+def toml_value(v: Any) -> str:
+    """One TOML value (bool, number with nan, string, list) as text; the writer of every
+    vehicle-file table vestim writes."""
     if isinstance(v, bool):
         return "true" if v else "false"
     if isinstance(v, float | int):
@@ -186,15 +188,15 @@ def _toml_value(v: Any) -> str:
     if isinstance(v, str):
         return '"' + v.replace("\\", "\\\\").replace('"', '\\"').replace("\n", " ") + '"'
     if isinstance(v, list | tuple):
-        return "[" + ", ".join(_toml_value(x) for x in v) + "]"
+        return "[" + ", ".join(toml_value(x) for x in v) + "]"
     raise TypeError(f"no TOML form for {v!r}")
 
 
 def calibration_toml(cal: Calibration) -> str:
     """The ``[calibration]`` tables as TOML text (round trip: :func:`parse_calibration`)."""
-    lines = ["[calibration]", f"base = {_toml_value(cal.base)}",
-             f"sources = {_toml_value(list(cal.sources))}",
-             f"vestim_version = {_toml_value(cal.vestim_version)}"]
+    lines = ["[calibration]", f"base = {toml_value(cal.base)}",
+             f"sources = {toml_value(list(cal.sources))}",
+             f"vestim_version = {toml_value(cal.vestim_version)}"]
     for group, units in KEYS.items():
         values = cal.groups.get(group)
         if not values:
@@ -204,10 +206,10 @@ def calibration_toml(cal: Calibration) -> str:
             v = values.get(key)
             if v is None:
                 continue
-            lines += [f"{key} = {_toml_value(v.value)}  # {v.unit}",
-                      f"sigma_{key} = {_toml_value(v.sigma)}",
-                      f"excited_{key} = {_toml_value(v.excited)}",
-                      f"evidence_{key} = {_toml_value(v.evidence)}"]
+            lines += [f"{key} = {toml_value(v.value)}  # {v.unit}",
+                      f"sigma_{key} = {toml_value(v.sigma)}",
+                      f"excited_{key} = {toml_value(v.excited)}",
+                      f"evidence_{key} = {toml_value(v.evidence)}"]
     return "\n".join(lines) + "\n"
 
 

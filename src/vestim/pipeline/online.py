@@ -344,21 +344,19 @@ def post_step_kernel(out: np.ndarray, ix: np.ndarray, delta_l: float, delta_r: f
     t[0] = out[ix[0]]
     vx = np.empty(1)
     vx[0] = out[ix[1]]
-    mux, muy, su = np.empty((1, 4)), np.empty((1, 4)), np.empty((1, 4))
+    fx, fy, fz = np.empty((1, 4)), np.empty((1, 4)), np.empty((1, 4))
+    sfx, sfy = np.empty((1, 4)), np.empty((1, 4))
     sr, sa = np.empty((1, 4)), np.empty((1, 4))
     for c in range(4):
-        load = max(out[ix[12 + c]], 1.0)
-        mux[0, c] = out[ix[4 + c]] / load
-        muy[0, c] = out[ix[8 + c]] / load
-        su[0, c] = np.hypot(out[ix[16 + c]], out[ix[20 + c]]) / load
-        sr[0, c] = out[ix[24 + c]]
-        sa[0, c] = out[ix[28 + c]]
+        fx[0, c], fy[0, c], fz[0, c] = out[ix[4 + c]], out[ix[8 + c]], out[ix[12 + c]]
+        sfx[0, c], sfy[0, c] = out[ix[16 + c]], out[ix[20 + c]]
+        sr[0, c], sa[0, c] = out[ix[24 + c]], out[ix[28 + c]]
     sig_a = np.empty(1)
     s = max(out[ix[2]], sigma_vy_floor) / max(abs(vx[0]), 1.0)
     sig_a[0] = s if np.isfinite(s) else 0.0
     ky = np.empty(1)
     ky[0] = out[ix[3]]
-    friction_kernel(t, mux, muy, su, sr, sa, sig_a, ky, fkx, fprm, fstate, mu, smu, ex)
+    friction_kernel(t, fx, fy, fz, sfx, sfy, sr, sa, sig_a, ky, fkx, fprm, fstate, mu, smu, ex)
     delta = np.empty((1, 2))
     delta[0, 0], delta[0, 1] = delta_l, delta_r
     a = np.empty(1)

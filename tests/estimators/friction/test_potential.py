@@ -45,9 +45,10 @@ def _run(u_x, u_y, slip_ratio, slip_angle, ky=20.0, kx=20.0, sigma_u=0.01, p=Non
     mu = np.empty((n, 4))
     smu = np.empty((n, 4))
     ex = np.empty((n, 4))
-    friction_kernel(t, col(u_x), col(u_y), col(np.full(n, sigma_u)), col(slip_ratio),
-                    col(slip_angle), np.zeros(n), np.full(n, ky), np.full(4, kx), friction_params(p),
-                    np.full(4, np.nan), mu, smu, ex)
+    one = np.ones((n, 4))  # F_z = 1 N: the forces are the normalised ones
+    friction_kernel(t, col(u_x), col(u_y), one, col(np.full(n, sigma_u)), np.zeros((n, 4)),
+                    col(slip_ratio), col(slip_angle), np.zeros(n), np.full(n, ky),
+                    np.full(4, kx), friction_params(p), np.full(4, np.nan), mu, smu, ex)
     return mu[:, 0], smu[:, 0], ex[:, 0]
 
 

@@ -26,7 +26,6 @@ import tomllib
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, replace
 from pathlib import Path
-from typing import Any
 
 import pandas as pd
 
@@ -37,6 +36,7 @@ from vestim.io.calibration import (
     Identified,
     calibration_toml,
     corrected_log,
+    toml_value,
 )
 from vestim.io.files import atomic_path, write_text_atomic
 from vestim.io.log import read_log
@@ -110,32 +110,12 @@ def calibrate(
         b = base.body
         corrected = [corrected_log(df, cal, wheel_radius=b.wheel_radius,
                                    steering_ratio=b.steering_ratio) for df in raw]
-        result = fn(corrected, replace(base, calibration=None) if step == "imu" else veh)
-        if step == "imu":
-            result = _body_axes_mounting(result)
-        found.update(result)
+        found.update(fn(corrected, replace(base, calibration=None) if step == "imu" else veh))
         timings[step] = time.perf_counter() - t0
     if progress is not None:
         progress("done", 1.0)
     cal = _calibration(found, base, names)
     return CalibrationResult(cal, replace(base, calibration=cal), timings)
-
-
-def _body_axes_mounting(values: dict[str, Identified]) -> dict[str, Identified]:
-    """Drive logs are in the spec's body axes, so their IMU is aligned by definition: a
-    residual mounting found from them is a finding, not a correction. On the crossplant
-    logs (aligned IMUs) the residual yaw read 2.2° ± 1.2° and 4.9° ± 1.8° — confounded by
-    sideslip and ABS — and rotating by it moved 4-9 % of a_x into a_y. A misaligned sensor
-    is imported through a channel map's ``mounting`` instead (docs/channel-map.md)."""
-    out = dict(values)
-    for key in ("mount_roll", "mount_pitch", "mount_yaw"):
-        v = out.get(key)
-        if v is not None and v.excited:
-            out[key] = Identified.not_excited(
-                0.0, f"logs in body axes are aligned by the spec; residual "
-                f"{math.degrees(v.value):.2f}° ± {math.degrees(v.sigma):.2f}° found ({v.evidence})"
-                " — if real, import the raw log with a channel map's mounting", v.unit)
-    return out
 
 
 def _calibration(found: dict[str, Identified], base: Vehicle, names: Sequence[str]) -> Calibration:
@@ -148,18 +128,6 @@ def _calibration(found: dict[str, Identified], base: Vehicle, names: Sequence[st
             raise ValueError(f"calibration step returned unknown key {key!r}")
         groups.setdefault(group, {})[key] = value
     return Calibration(groups, base=base.name, sources=tuple(names), vestim_version=__version__)
-
-
-def _toml_scalar(v: Any) -> str:
-    if isinstance(v, bool):
-        return "true" if v else "false"
-    if isinstance(v, int | float):
-        return repr(float(v)) if isinstance(v, float) else str(v)
-    if isinstance(v, str):
-        return '"' + v.replace("\\", "\\\\").replace('"', '\\"') + '"'
-    if isinstance(v, list):
-        return "[" + ", ".join(_toml_scalar(x) for x in v) + "]"
-    raise TypeError(f"no TOML form for {v!r}")
 
 
 def write_calibrated(result: CalibrationResult, base_path: str | os.PathLike[str] | None,
@@ -189,7 +157,7 @@ def write_calibrated(result: CalibrationResult, base_path: str | os.PathLike[str
              f"{', '.join(result.calibration.sources)} (vestim {result.calibration.vestim_version})"]
     for table, values in data.items():
         lines += ["", f"[{table}]"]
-        lines += [f"{k} = {_toml_scalar(v)}" for k, v in values.items()]
+        lines += [f"{k} = {toml_value(v)}" for k, v in values.items()]
     text_out = "\n".join(lines) + "\n\n" + calibration_toml(result.calibration)
     load_check = tomllib.loads(text_out)  # the file must load back as a vehicle
     from vestim.io.vehicle import vehicle_from_dict

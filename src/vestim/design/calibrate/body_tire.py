@@ -43,7 +43,7 @@ Tires (:func:`identify_tires`):
 * the lumped LuGre ``[tire]`` values of 000/001 through
   :func:`vestim.design.tire_fit.fit_lugre_from_log`, one fit per log, combined.
 
-Every value is an :class:`~vestim.design.calibrate.result.Identified`: one-σ from the
+Every value is an :class:`~vestim.io.calibration.Identified`: one-σ from the
 regression (residual variance inflated by the residual's integrated autocorrelation time,
 the filtered samples being far from independent; for the tire fits at least the block
 jackknife's spread, which sees model error), or "not excited" with the base value (the
@@ -69,11 +69,11 @@ import pandas as pd
 from scipy.signal import butter, sosfiltfilt
 
 from vestim.constants import CORNERS, G
-from vestim.design.calibrate.result import Identified
 from vestim.design.tire_fit import fit_lugre_from_log
 from vestim.errors import LogFormatError
 from vestim.estimators.stiffness.config import StiffnessPrior
 from vestim.estimators.stiffness.model import pitch_gradient, roll_gradient
+from vestim.io.calibration import Identified
 from vestim.io.vehicle import Vehicle
 
 FC = 1.0

@@ -2,7 +2,7 @@
 steering ratio, offset and understeer, identified from ordinary drive logs.
 
 Only measured channels are read (never a ``ref_`` column). Every value is an
-:class:`~vestim.design.calibrate.result.Identified` with a one-σ uncertainty and the data it
+:class:`~vestim.io.calibration.Identified` with a one-σ uncertainty and the data it
 came from, or "not excited" with the vehicle file's value kept.
 
 Uncertainties: a mean or least-squares fit over n samples has its white-noise σ inflated by
@@ -21,9 +21,9 @@ import pandas as pd
 from scipy.signal import butter, filtfilt
 
 from vestim.constants import CORNERS, G
-from vestim.design.calibrate.result import Identified
 from vestim.errors import LogFormatError
 from vestim.estimators.velocity.reference import RadiusParams, gnss_calibration, radius_params
+from vestim.io.calibration import Identified
 from vestim.io.channel_map import (
     AUTO_STEADY_DOMEGA,
     AUTO_STRAIGHT_YAW_RATE,
@@ -611,7 +611,8 @@ def identify_imu(logs: Sequence[pd.DataFrame], vehicle: Vehicle, *,
             from the mount's pitch/roll (0.05 m/s² of bias reads as 0.29°) and are reported
             not excited. Default False: the channels are in body axes (the log format's); the
             mount's roll and pitch are then folded into the ax/ay biases (reported not
-            excited) and only a residual yaw is fitted (ay's response to dv/dt).
+            excited) and a residual yaw is fitted (ay's response to dv/dt) and reported, not
+            excited: the log format defines those axes as the body's.
 
     Method: gyro biases from standstill (≥ 1 s, every wheel below 0.05 m/s) when there is
     one, else from driving: yaw rate − the wheel-speed yaw rate (fitted with a term in ay for
@@ -834,8 +835,17 @@ def identify_imu(logs: Sequence[pd.DataFrame], vehicle: Vehicle, *,
         out["mount_roll"] = Identified.not_excited(0.0, why, "rad")
         out["mount_pitch"] = Identified.not_excited(0.0, why, "rad")
         if per_yaw:
+            # Logs in body axes are aligned by the log format, so the residual yaw is a
+            # finding, not a correction: on the aligned crossplant IMUs it read 2.2° ± 1.2°
+            # and 4.9° ± 1.8° (confounded by sideslip and ABS), and rotating by it moved
+            # 4–9 % of a_x into a_y. A misaligned sensor is imported through a channel map's
+            # mounting, or calibrated with sensor_axes=True.
             val, sig = _combine(per_yaw)
-            out["mount_yaw"] = Identified(val, sig, True, f"ay's response to dv/dt, {text}", "rad")
+            out["mount_yaw"] = Identified.not_excited(
+                0.0, f"logs in body axes are aligned by the log format; residual "
+                f"{math.degrees(val):.2f}° ± {math.degrees(sig):.2f}° found from ay's response "
+                f"to dv/dt ({text}): if real, import the raw log with a channel map's mounting",
+                "rad")
         else:
             out["mount_yaw"] = Identified.not_excited(
                 0.0, "the speed hardly changes (std dv/dt < 0.1 m/s²)", "rad")

@@ -7,8 +7,7 @@ from vestim.estimators.friction.potential import (
     friction_params,
     friction_potential,
     invert_shape,
-    output_names,
 )
 
 __all__ = ["FrictionParams", "corner_kx", "friction_kernel", "friction_params", "friction_potential",
-           "invert_shape", "output_names"]
+           "invert_shape"]

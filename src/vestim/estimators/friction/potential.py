@@ -145,17 +145,17 @@ def invert_shape(q: float, c: float) -> float:
 
 
 @njit(**_JIT)
-def friction_kernel(t: np.ndarray, mu_x: np.ndarray, mu_y: np.ndarray, sigma_u: np.ndarray,
-                    slip_ratio: np.ndarray, slip_angle: np.ndarray, sigma_alpha: np.ndarray,
-                    ky: np.ndarray, kx: np.ndarray, prm: np.ndarray, state: np.ndarray,
-                    mu: np.ndarray,
+def friction_kernel(t: np.ndarray, fx: np.ndarray, fy: np.ndarray, fz: np.ndarray,
+                    sigma_fx: np.ndarray, sigma_fy: np.ndarray, slip_ratio: np.ndarray,
+                    slip_angle: np.ndarray, sigma_alpha: np.ndarray, ky: np.ndarray,
+                    kx: np.ndarray, prm: np.ndarray, state: np.ndarray, mu: np.ndarray,
                     sigma_mu: np.ndarray, excited: np.ndarray) -> None:
     """Friction potential per corner over a block of samples (causal; ``state`` carries on).
 
     Args:
         t: sample times (n,), s.
-        mu_x, mu_y: normalised tire forces F/F_z (n, 4), tire frame.
-        sigma_u: one-σ of ‖(μ_x, μ_y)‖ (n, 4).
+        fx, fy, fz: tire forces (n, 4), N, tire frame; u = ‖(F_x, F_y)‖ / max(F_z, 1 N).
+        sigma_fx, sigma_fy: their one-σ (n, 4), N (NaN: none, and no sample is excited).
         slip_ratio, slip_angle: estimated slips (n, 4), – and rad (spec signs).
         sigma_alpha: one-σ of the slip angles (n,), rad, beyond ``sigma_slip_angle`` (the
             velocity filter's σ_vy / v_x; 0 when it has none).
@@ -171,7 +171,9 @@ def friction_kernel(t: np.ndarray, mu_x: np.ndarray, mu_y: np.ndarray, sigma_u: 
     eps = 1.01
     for k in range(t.shape[0]):
         for c in range(4):
-            u = math.hypot(mu_x[k, c], mu_y[k, c])
+            load = max(fz[k, c], 1.0)
+            u = math.hypot(fx[k, c], fy[k, c]) / load
+            su = math.hypot(sigma_fx[k, c], sigma_fy[k, c]) / load
             s = slip_ratio[k, c]
             scale = 1.0 / (1.0 + abs(s))
             lx = kx[c] * s * scale
@@ -187,7 +189,7 @@ def friction_kernel(t: np.ndarray, mu_x: np.ndarray, mu_y: np.ndarray, sigma_u: 
                 q = lin / u
                 y = invert_shape(q, shape)
                 dlny = math.log(invert_shape(q * eps, shape) / y) / math.log(eps)
-                rel_u = sigma_u[k, c] / u
+                rel_u = su / u
                 rel_q2 = var_lin / (lin * lin) + rel_u * rel_u
                 m = u / y
                 sm = m * math.sqrt(dlny * dlny * rel_q2 + rel_u * rel_u)
@@ -204,13 +206,6 @@ def friction_kernel(t: np.ndarray, mu_x: np.ndarray, mu_y: np.ndarray, sigma_u: 
                 mu[k, c], sigma_mu[k, c], excited[k, c] = np.nan, np.nan, 0.0
 
 
-CORNER_NAMES = ("fl", "fr", "rl", "rr")
-
-
-def output_names() -> list[str]:
-    """Columns this stage writes: ``mu_<c>``, ``sigma_mu_<c>``, ``mu_<c>_excited`` per corner."""
-    return [*(f"mu_{c}" for c in CORNER_NAMES), *(f"sigma_mu_{c}" for c in CORNER_NAMES),
-            *(f"mu_{c}_excited" for c in CORNER_NAMES)]
 
 
 def friction_potential(t: np.ndarray, fx: np.ndarray, fy: np.ndarray, fz: np.ndarray,
@@ -218,25 +213,19 @@ def friction_potential(t: np.ndarray, fx: np.ndarray, fy: np.ndarray, fz: np.nda
                        slip_angle: np.ndarray, sigma_alpha: np.ndarray, ky: np.ndarray,
                        kx: np.ndarray, prm: np.ndarray,
                        state: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """:func:`friction_kernel` on the force and velocity stages' arrays.
+    """:func:`friction_kernel` on the force and velocity stages' arrays, outputs allocated.
 
-    Args:
-        t: (n,) s. fx, fy, fz, sigma_fx, sigma_fy: (n, 4) N, tire frame. slip_ratio,
-            slip_angle: (n, 4), – and rad. sigma_alpha: (n,) rad, the velocity filter's
-            slip-angle σ (σ_vy / v_x; NaN is taken as 0). ky: (n,) 1/rad. kx:
-            :func:`corner_kx`.
-        prm: :func:`friction_params`; state: (4,), carried on between calls.
+    ``sigma_alpha``: (n,) rad, the velocity filter's slip-angle σ (NaN is taken as 0).
 
     Returns:
-        μ, σ_μ (NaN where not excited) and the excitation flag (1/0), each (n, 4). A force
-        method without σ (NaN) gives no excited sample: μ without its σ is not offered.
+        μ, σ_μ (NaN where not excited) and the excitation flag (1/0), each (n, 4).
     """
-    load = np.maximum(fz, 1.0)
     n = t.shape[0]
     mu, smu, ex = np.empty((n, 4)), np.empty((n, 4)), np.empty((n, 4))
     c = np.ascontiguousarray
-    friction_kernel(c(t, dtype=np.float64), c(fx / load), c(fy / load),
-                    c(np.hypot(sigma_fx, sigma_fy) / load), c(slip_ratio, dtype=np.float64),
+    friction_kernel(c(t, dtype=np.float64), c(fx, dtype=np.float64), c(fy, dtype=np.float64),
+                    c(fz, dtype=np.float64), c(sigma_fx, dtype=np.float64),
+                    c(sigma_fy, dtype=np.float64), c(slip_ratio, dtype=np.float64),
                     c(slip_angle, dtype=np.float64),
                     c(np.nan_to_num(sigma_alpha, nan=0.0), dtype=np.float64),
                     c(ky, dtype=np.float64), kx, prm, state, mu, smu, ex)
