@@ -472,7 +472,7 @@ def _run_one(job: _Job) -> dict[str, Any]:
                 **pipe.force.input_sources, "batch_key": key,
                 "batch_row": json.dumps({k: v for k, v in row.items()
                                          if k not in ("log", "output", "status", "error")})}
-        write_log(est, out, metadata=meta)
+        write_log(est, out, metadata=meta, float32=True)  # as `vestim estimate` writes
     except Exception as exc:  # one bad log must not stop the batch: its row says why
         msg = str(exc) if isinstance(exc, VestimError) else f"{type(exc).__name__}: {exc}"
         row = _empty_row(job.log, _vehicle_label(job.vehicle))

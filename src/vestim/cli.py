@@ -7,6 +7,7 @@ print one clear line and exit with status 2, never a traceback.
 from __future__ import annotations
 
 import time
+from collections.abc import Iterator
 from pathlib import Path
 from typing import TYPE_CHECKING, Annotated, Any
 
@@ -50,6 +51,9 @@ VehicleOpt = Annotated[str, typer.Option("--vehicle", help="Vehicle TOML file or
 
 
 LOG_SUFFIXES = (".csv", ".parquet", ".pq")
+SANITY_ROWS = 720_000
+"""`vestim estimate` runs the cross-channel input checks on the first this many rows (1 h at
+200 Hz; a whole log below that): the checks need the log in memory, the estimate does not."""
 PROGRESS_AFTER_S = 2.0
 """A run shows a progress bar once it has taken this long (shorter runs stay quiet)."""
 
@@ -205,9 +209,12 @@ def estimate_cmd(
         return
     if method != "pipeline":
         raise _fail(ValueError(f"method {method!r}: use pipeline or stiffness-pf"))
+    import itertools
     import json
 
-    from vestim.io import check_log, load_vehicle, read_log, write_log
+    import pandas as pd
+
+    from vestim.io import LogWriter, check_log, iter_log, load_vehicle, parquet_rows, read_log
     from vestim.io.files import check_output_path
     from vestim.pipeline import Pipeline, PipelineConfig
 
@@ -219,23 +226,39 @@ def estimate_cmd(
                                   if v is not None}
         cfg = (PipelineConfig.from_toml(config) if config is not None
                else PipelineConfig(**stages, gains=str(gains) if gains else None))
-        log = (read_log(log_path, require=["measured"], wheel_radius=veh.body.wheel_radius)
-               if map_path is None else _import_for_estimate(log_path, map_path,
-                                                             veh.body.wheel_radius))
-        # Cross-channel checks (docs/input-checks.md): errors exit 2, warnings are kept.
-        warnings = check_log(log, veh, source=str(log_path))
+        radius = veh.body.wheel_radius
+        pieces: Iterator[pd.DataFrame]
+        if map_path is None and log_path.suffix.lower() in (".parquet", ".pq"):
+            # A Parquet log streams through in pieces: bounded memory for any length.
+            total = parquet_rows(log_path)
+            pieces = iter_log(log_path, require=["measured"], wheel_radius=radius)
+        else:
+            log = (read_log(log_path, require=["measured"], wheel_radius=radius)
+                   if map_path is None else _import_for_estimate(log_path, map_path, radius))
+            total, pieces = len(log), iter([log])
+        # Cross-channel checks (docs/input-checks.md) on the first SANITY_ROWS rows: errors
+        # exit 2 before anything is written, warnings are kept.
+        head: list[pd.DataFrame] = []
+        while sum(map(len, head)) < SANITY_ROWS and (piece := next(pieces, None)) is not None:
+            head.append(piece)
+        warnings = check_log(head[0] if len(head) == 1 else pd.concat(head, ignore_index=True),
+                             veh, source=str(log_path))
         t0 = time.perf_counter()
         _note_compiling()
         pipe = Pipeline(veh, cfg)
-        with _Progress(f"estimating {log_path.name}") as progress:
-            est = pipe.run(log, progress=progress)
-        meta = {"vehicle": veh.name, "force": cfg.force, "normal": cfg.normal,
-                "velocity": cfg.velocity, "fusion": cfg.fusion, "source": str(log_path),
-                **_provenance(vehicle, cfg),
-                **pipe.force.input_sources,
-                "warnings": json.dumps([w.as_dict() for w in warnings], ensure_ascii=False),
-                "gaps": json.dumps(pipe.gaps)}
-        path = write_log(est, out, metadata=meta)
+        with _Progress(f"estimating {log_path.name}") as progress, LogWriter(out, float32=True) as writer:
+            for frame in pipe.run_pieces(itertools.chain(head, pieces), progress=progress,
+                                         total=total):
+                head = []  # the checked pieces are not held once estimated
+                writer.write(frame)
+            meta = {"vehicle": veh.name, "force": cfg.force, "normal": cfg.normal,
+                    "velocity": cfg.velocity, "fusion": cfg.fusion, "source": str(log_path),
+                    **_provenance(vehicle, cfg),
+                    **pipe.force.input_sources,
+                    "warnings": json.dumps([w.as_dict() for w in warnings], ensure_ascii=False),
+                    "gaps": json.dumps(pipe.gaps)}
+            writer.metadata.update(meta)
+        path, rows, channels = writer.path, writer.rows, len(writer.columns) - 1
     except (VestimError, ValueError, OSError) as exc:
         raise _fail(exc) from None
     esc = rich.markup.escape
@@ -259,7 +282,7 @@ def estimate_cmd(
         console.print(esc(f"note: no wheel speeds: velocities from {meta['speed_source']}; not "
                           "given (metadata outputs_unavailable): slip ratios, per-corner F_x, "
                           "mu_x, radius_scale, gnss_latency"))
-    console.print(esc(f"wrote {path} ({len(est)} samples, {len(est.columns) - 1} channels, "
+    console.print(esc(f"wrote {path} ({rows} samples, {channels} channels, "
                       f"{time.perf_counter() - t0:.2f} s)"))
 
 

@@ -197,16 +197,15 @@ def test_unsupported_extension(tmp_path: Path, name: str) -> None:
 
 def _partial_then_fail(*args: object, **kwargs: object) -> None:
     sink = args[1]
-    if hasattr(sink, "write"):
+    if hasattr(sink, "write"):  # the CSV writer's open file
         sink.write(b"0.0,1.0\n")  # type: ignore[attr-defined]
-    else:
-        Path(str(sink)).write_bytes(b"PAR1 partial")
+    # the Parquet writer (args: the writer, the table) has already opened the temporary file
     raise OSError("disk full")
 
 
 @pytest.mark.parametrize(
     ("suffix", "module", "writer"),
-    [(".csv", pacsv, "write_csv"), (".parquet", pq, "write_table")],
+    [(".csv", pacsv, "write_csv"), (".parquet", pq.ParquetWriter, "write_table")],
 )
 def test_failed_write_keeps_previous_file_and_leaves_no_temp(
     tmp_path: Path, monkeypatch: pytest.MonkeyPatch, suffix: str, module: object, writer: str

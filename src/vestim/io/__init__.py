@@ -1,8 +1,16 @@
 """Reading and writing drive logs and vehicle files (``shared/spec/log-format.md``)."""
 
-from vestim.io.log import read_log, road_wheel_angles, validate_log, write_log
+from vestim.io.log import (
+    LogWriter,
+    iter_log,
+    parquet_rows,
+    read_log,
+    road_wheel_angles,
+    validate_log,
+    write_log,
+)
 from vestim.io.sanity import Finding, check_log
 from vestim.io.vehicle import Vehicle, load_vehicle
 
-__all__ = ["Finding", "Vehicle", "check_log", "load_vehicle", "read_log", "road_wheel_angles",
-           "validate_log", "write_log"]
+__all__ = ["Finding", "LogWriter", "Vehicle", "check_log", "iter_log", "load_vehicle",
+           "parquet_rows", "read_log", "road_wheel_angles", "validate_log", "write_log"]

@@ -16,7 +16,8 @@ import csv
 import io
 import math
 import os
-from collections.abc import Iterable, Mapping
+import sys
+from collections.abc import Iterable, Iterator, Mapping
 from pathlib import Path
 from typing import Any
 
@@ -31,7 +32,8 @@ from vestim.errors import LogFormatError
 from vestim.io import channels as ch
 from vestim.io.files import atomic_path
 
-__all__ = ["read_log", "road_wheel_angles", "validate_log", "write_log"]
+__all__ = ["LogWriter", "iter_log", "parquet_rows", "read_log", "road_wheel_angles",
+           "validate_log", "write_log"]
 
 CSV_SUFFIXES: tuple[str, ...] = (".csv",)
 PARQUET_SUFFIXES: tuple[str, ...] = (".parquet", ".pq")
@@ -122,25 +124,104 @@ def read_log(
         else:
             table = pq.read_table(p, page_checksum_verification=True)
             df = table.to_pandas()
-            meta = table.schema.metadata or {}
-            prefix = METADATA_PREFIX.encode()
-            df.attrs = {
-                k[len(prefix):].decode(errors="replace"): v.decode(errors="replace")
-                for k, v in meta.items()
-                if k.startswith(prefix)
-            }
-    except UnicodeDecodeError as exc:
-        raise LogFormatError(f"{p}: not a UTF-8 text file ({exc.reason} at byte {exc.start}); "
-                             "a CSV log is UTF-8 text with a header row") from exc
+            df.attrs = _vestim_metadata(table.schema.metadata)
     except Exception as exc:
-        # The decoders report a damaged file in many ways (pyarrow: OSError, ArrowInvalid;
-        # pandas: ParserError, a JSON ValueError or a KeyError from corrupt schema metadata):
-        # each means "this file cannot be read", and the decoder's own words say where.
-        if isinstance(exc, FileNotFoundError):
-            raise LogFormatError(f"{p}: file not found") from exc
-        raise LogFormatError(f"{p}: cannot be read as {kind.upper()}: {exc}") from exc
+        raise _unreadable(p, kind, exc) from exc
     validate_log(df, require=require, wheel_radius=wheel_radius, source=str(p))
     return df
+
+
+STREAM_ROWS = 131_072
+"""Rows per piece of :func:`iter_log` (about 11 min at 200 Hz; ~25 MB of input channels)."""
+
+
+def parquet_rows(path: str | os.PathLike[str]) -> int:
+    """Number of rows of a Parquet log, from its footer (nothing else is read)."""
+    p = Path(path)
+    try:
+        return int(pq.ParquetFile(p).metadata.num_rows)
+    except Exception as exc:
+        raise _unreadable(p, "parquet", exc) from exc
+
+
+def iter_log(
+    path: str | os.PathLike[str],
+    *,
+    require: Iterable[str] = (),
+    wheel_radius: float | None = None,
+    rows: int | None = None,
+) -> Iterator[pd.DataFrame]:
+    """Read a Parquet log piece by piece, in bounded memory (a 10 h log at 200 Hz is 1.5 GB).
+
+    Each piece of at least ``rows`` rows (default :data:`STREAM_ROWS`; whole record batches;
+    the last may be shorter) is checked as :func:`read_log` checks a whole log, with messages
+    that name the file's row, and ``t`` must go on increasing from one piece to the next; the
+    pieces concatenated are the log :func:`read_log` returns, each with its ``attrs``. The unit checks are per
+    sample or skip what a piece does not excite, so a short last piece is checked as well.
+
+    Raises:
+        LogFormatError: as :func:`read_log`, for the first piece with a problem.
+    """
+    p = Path(path)
+    if _kind(p) != "parquet":
+        raise LogFormatError(f"{p}: only Parquet logs are read in pieces; convert it with "
+                             "`vestim import` or read it whole with read_log")
+    rows = STREAM_ROWS if rows is None else rows
+    if rows < 1:
+        raise ValueError(f"rows = {rows}: read at least 1 row per piece")
+    try:
+        f = pq.ParquetFile(p, page_checksum_verification=True)
+        attrs = _vestim_metadata(f.schema_arrow.metadata)
+        first, t_last = 0, -math.inf
+        buf: list[pa.RecordBatch] = []
+        pieces = f.iter_batches(batch_size=rows)
+        while True:
+            batch = next(pieces, None)
+            if batch is not None:
+                buf.append(batch)
+                if sum(b.num_rows for b in buf) < rows:
+                    continue
+            elif not buf and first > 0:
+                return
+            piece = pa.Table.from_batches(buf, schema=f.schema_arrow).to_pandas()
+            buf = []
+            piece.attrs = dict(attrs)
+            validate_log(piece, require=require, wheel_radius=wheel_radius, source=str(p),
+                         first_row=first)
+            t0 = float(piece["t"].iloc[0])
+            if not t0 > t_last:
+                raise LogFormatError(
+                    f"{p}: column 't' is not strictly increasing at row {first} (t = {t0!r} s); "
+                    f"the previous row has t = {t_last!r} s. Sort the log by t and drop repeated "
+                    "samples")
+            t_last = float(piece["t"].iloc[-1])
+            first += piece.shape[0]
+            yield piece
+            if batch is None:
+                return
+    except LogFormatError:
+        raise
+    except Exception as exc:
+        raise _unreadable(p, "parquet", exc) from exc
+
+
+def _vestim_metadata(meta: Mapping[bytes, bytes] | None) -> dict[str, str]:
+    """vestim's keys of Parquet schema metadata, without their prefix."""
+    prefix = METADATA_PREFIX.encode()
+    return {k[len(prefix):].decode(errors="replace"): v.decode(errors="replace")
+            for k, v in (meta or {}).items() if k.startswith(prefix)}
+
+
+def _unreadable(p: Path, kind: str, exc: Exception) -> LogFormatError:
+    """The decoders report a damaged file in many ways (pyarrow: OSError, ArrowInvalid;
+    pandas: ParserError, a JSON ValueError or a KeyError from corrupt schema metadata): each
+    means "this file cannot be read", and the decoder's own words say where."""
+    if isinstance(exc, UnicodeDecodeError):
+        return LogFormatError(f"{p}: not a UTF-8 text file ({exc.reason} at byte {exc.start}); "
+                              "a CSV log is UTF-8 text with a header row")
+    if isinstance(exc, FileNotFoundError):
+        return LogFormatError(f"{p}: file not found")
+    return LogFormatError(f"{p}: cannot be read as {kind.upper()}: {exc}")
 
 
 def write_log(
@@ -148,6 +229,7 @@ def write_log(
     path: str | os.PathLike[str],
     *,
     metadata: Mapping[str, str] | None = None,
+    float32: bool = False,
 ) -> Path:
     """Write a log atomically as CSV or Parquet (by extension), columns in canonical order.
 
@@ -160,34 +242,136 @@ def write_log(
     CSV floats are written in shortest round-trip form, so read → write → read returns
     identical float64 values; :func:`read_log` reads every CSV column as float64.
     ``metadata`` is stored in Parquet schema metadata under ``vestim.<key>``; CSV has no
-    place for it and ignores it.
+    place for it and ignores it. ``float32``: as :class:`LogWriter`'s.
 
     Returns:
         The path written.
     """
-    p = Path(path)
-    kind = _kind(p)
-    check_structure(df, source="log to write")
-    if metadata is not None:
-        for key, value in metadata.items():
-            if not isinstance(key, str) or not isinstance(value, str):
-                raise TypeError(
-                    f"metadata must map str to str; got {key!r}: {value!r} "
-                    f"({type(key).__name__}: {type(value).__name__})"
-                )
-    out = df[ch.canonical_order(df.columns)]
-    with atomic_path(p) as tmp:
-        table = pa.Table.from_pandas(out, preserve_index=False)
-        if kind == "csv":
-            _write_csv(table, tmp)
+    with LogWriter(path, float32=float32) as w:
+        w.write(df)
+        if metadata is not None:
+            w.metadata.update(metadata)
+    return w.path
+
+
+class LogWriter:
+    """Write a log piece by piece (bounded memory), atomically: the file appears, whole, when
+    the ``with`` block ends without an exception, and not at all otherwise.
+
+    The first piece fixes the columns (canonical order) and, for Parquet, the types; every
+    later piece must have the same columns, and ``t`` must go on increasing. Each piece is
+    checked as :func:`write_log` checks a log. With ``float32``, every float column but ``t``
+    is stored in single precision (a relative 6e-8, far below any estimate's σ; ``t`` stays
+    float64, which a 10 h log at 200 Hz needs), which halves the file. Parquet columns are
+    zstd-compressed without dictionaries (measured variables rarely repeat a value).
+    ``metadata`` (str → str) may be filled until the block ends: Parquet stores it in the
+    file's key-value metadata under ``vestim.<key>`` (:func:`read_log` returns it in
+    ``attrs``); CSV ignores it. Parquet pages carry checksums, which :func:`read_log` verifies.
+
+    Example::
+
+        with LogWriter("est.parquet") as w:
+            for piece in pieces:
+                w.write(piece)
+            w.metadata["source"] = "drive.parquet"
+    """
+
+    def __init__(self, path: str | os.PathLike[str], *, float32: bool = False) -> None:
+        self.path = Path(path)
+        self._float32 = float32
+        self._kind = _kind(self.path)
+        self.metadata: dict[str, str] = {}
+        self._columns: list[str] | None = None
+        self._rows = 0
+        self._t_last = -math.inf
+        self._atomic: Any = None
+        self._tmp: Path | None = None
+        self._parquet: pq.ParquetWriter | None = None
+        self._csv: Any = None
+
+    @property
+    def rows(self) -> int:
+        """Rows written so far."""
+        return self._rows
+
+    @property
+    def columns(self) -> list[str]:
+        """The columns, in the order written (empty before the first piece)."""
+        return list(self._columns or [])
+
+    def __enter__(self) -> LogWriter:
+        self._atomic = atomic_path(self.path)
+        self._tmp = self._atomic.__enter__()
+        return self
+
+    def write(self, df: pd.DataFrame) -> None:
+        """Append the rows of ``df`` (a log piece: ``t`` and numeric channels)."""
+        if self._tmp is None:
+            raise RuntimeError("LogWriter.write outside its `with` block")
+        source = "log to write" if self._rows == 0 else f"log to write (rows from {self._rows})"
+        t = check_structure(df, source=source, first_row=self._rows)
+        if self._columns is None:
+            self._columns = ch.canonical_order(df.columns)
+        elif set(df.columns) != set(self._columns):
+            extra = sorted(set(df.columns) - set(self._columns))
+            lack = sorted(set(self._columns) - set(df.columns))
+            raise LogFormatError(f"{source}: the piece's columns differ from the first piece's "
+                                 f"(extra: {', '.join(extra) or 'none'}; missing: "
+                                 f"{', '.join(lack) or 'none'}); every piece needs the same "
+                                 "columns")
+        if not t[0] > self._t_last:
+            raise LogFormatError(f"{source}: column 't' is not strictly increasing at row "
+                                 f"{self._rows} (t = {float(t[0])!r} s after {self._t_last!r} s)")
+        table = pa.Table.from_pandas(df[self._columns], preserve_index=False)
+        if self._float32:
+            table = pa.table([c.cast(pa.float32()) if n != ch.T and pa.types.is_float64(c.type)
+                              else c for n, c in zip(table.column_names, table.columns,
+                                                     strict=True)], names=table.column_names)
+        if self._kind == "csv":
+            if self._csv is None:
+                self._csv = open(self._tmp, "wb")  # noqa: SIM115 (closed in __exit__)
+                buf = io.StringIO()
+                csv.writer(buf, lineterminator="\n").writerow(table.column_names)
+                self._csv.write(buf.getvalue().encode("utf-8"))
+            pacsv.write_csv(table, self._csv, pacsv.WriteOptions(include_header=False))
         else:
-            if metadata:
-                merged = dict(table.schema.metadata or {})
-                merged.update({(METADATA_PREFIX + k).encode(): v.encode()
-                               for k, v in metadata.items()})
-                table = table.replace_schema_metadata(merged)
-            pq.write_table(table, tmp, write_page_checksum=True)
-    return p
+            if self._parquet is None:
+                # Without the stored Arrow schema, readers take the schema metadata from
+                # the file's key-value metadata, which can still be added at the end.
+                self._parquet = pq.ParquetWriter(self._tmp, table.schema.remove_metadata(),
+                                                 write_page_checksum=True, store_schema=False,
+                                                 use_dictionary=False, compression="zstd")
+            self._parquet.write_table(table.cast(self._parquet.schema))
+        self._rows += df.shape[0]
+        self._t_last = float(t[-1])
+
+    def __exit__(self, kind: Any, exc: Any, tb: Any) -> None:
+        try:
+            if kind is None:
+                if self._rows == 0:
+                    raise LogFormatError("log to write: no rows were written; a log needs at "
+                                         "least one sample")
+                for key, value in self.metadata.items():
+                    if not isinstance(key, str) or not isinstance(value, str):
+                        raise TypeError(f"metadata must map str to str; got {key!r}: {value!r} "
+                                        f"({type(key).__name__}: {type(value).__name__})")
+                if self._parquet is not None:
+                    self._parquet.add_key_value_metadata(
+                        {METADATA_PREFIX + k: v for k, v in self.metadata.items()})
+        except BaseException:
+            self._close()
+            self._atomic.__exit__(*sys.exc_info())
+            raise
+        self._close()
+        self._atomic.__exit__(kind, exc, tb)
+
+    def _close(self) -> None:
+        if self._parquet is not None:
+            self._parquet.close()
+            self._parquet = None
+        if self._csv is not None:
+            self._csv.close()
+            self._csv = None
 
 
 def validate_log(
@@ -196,6 +380,7 @@ def validate_log(
     require: Iterable[str] = (),
     wheel_radius: float | None = None,
     source: str = "log",
+    first_row: int = 0,
 ) -> None:
     """Check a log against the spec; return ``None`` or raise :class:`LogFormatError`.
 
@@ -224,14 +409,15 @@ def validate_log(
         require: column or group names that must be present.
         wheel_radius: effective rolling radius in m, or ``None`` to skip the scale check.
         source: prefix of every message (the file name when called by :func:`read_log`).
+        first_row: the file row of ``df``'s first row (a piece read by :func:`iter_log`).
     """
-    t = check_structure(df, source=source)
+    t = check_structure(df, source=source, first_row=first_row)
     if isinstance(require, str):
         require = (require,)
     _check_required(df, tuple(require), source)
     if "measured" in require:  # a log to estimate from, not any table of results
         _check_time_base(t, source)
-    _check_units(df, t, wheel_radius, source)
+    _check_units(df, t, wheel_radius, source, first_row)
 
 
 MAX_SAMPLE_INTERVAL = 0.1
@@ -306,16 +492,6 @@ def _read_csv(p: Path) -> pd.DataFrame:
         return pd.read_csv(p, **_CSV_READ_OPTIONS)
 
 
-def _write_csv(table: pa.Table, path: Path) -> None:
-    """Header by the csv module (quotes only where needed), body by Arrow: shortest
-    round-trip float text, about ten times faster than ``DataFrame.to_csv``."""
-    buf = io.StringIO()
-    csv.writer(buf, lineterminator="\n").writerow(table.column_names)
-    with open(path, "wb") as f:
-        f.write(buf.getvalue().encode("utf-8"))
-        pacsv.write_csv(table, f, pacsv.WriteOptions(include_header=False))
-
-
 def _kind(p: Path) -> str:
     suffix = p.suffix.lower()
     if suffix in CSV_SUFFIXES:
@@ -338,14 +514,18 @@ def _is_number_dtype(dtype: Any) -> bool:
     )
 
 
-def _where(i: int, t: np.ndarray | None) -> str:
+def _where(i: int, t: np.ndarray | None, first_row: int = 0) -> str:
     if t is None:
-        return f"row {i}"
-    return f"row {i} (t = {float(t[i])!r} s)"
+        return f"row {first_row + i}"
+    return f"row {first_row + i} (t = {float(t[i])!r} s)"
 
 
-def check_structure(df: pd.DataFrame, *, source: str) -> np.ndarray:
-    """Structural checks shared by reading and writing; returns ``t`` as float64."""
+def check_structure(df: pd.DataFrame, *, source: str, first_row: int = 0) -> np.ndarray:
+    """Structural checks shared by reading and writing; returns ``t`` as float64.
+
+    ``first_row`` is the row number of ``df``'s first row in its file (a piece of a log read
+    in chunks), so that messages name the row of the file.
+    """
     if not isinstance(df, pd.DataFrame):
         raise TypeError(f"{source}: expected a pandas DataFrame, got {type(df).__name__}")
     names = list(df.columns)
@@ -383,7 +563,7 @@ def check_structure(df: pd.DataFrame, *, source: str) -> np.ndarray:
             )
         coerced = pd.to_numeric(s, errors="coerce")
         bad = np.flatnonzero(coerced.isna().to_numpy() & s.notna().to_numpy())
-        where = f": {_where(int(bad[0]), t)} holds {s.iloc[bad[0]]!r}" if len(bad) else ""
+        where = f": {_where(int(bad[0]), t, first_row)} holds {s.iloc[bad[0]]!r}" if len(bad) else ""
         raise LogFormatError(
             f"{source}: column {name!r} is not numeric (dtype {s.dtype}){where}; every column "
             "must hold numbers in SI units, so convert or drop it"
@@ -408,11 +588,11 @@ def check_structure(df: pd.DataFrame, *, source: str) -> np.ndarray:
         what = "missing (NaN)" if math.isnan(value) else f"{value}"
         if name in ch.SPARSE:
             raise LogFormatError(
-                f"{source}: sparse column {name!r} is {what} at {_where(i, t)}; it holds a "
+                f"{source}: sparse column {name!r} is {what} at {_where(i, t, first_row)}; it holds a "
                 "finite speed ≥ 0 m/s on the rows nearest its own samples and NaN between"
             )
         raise LogFormatError(
-            f"{source}: column {name!r} is {what} at {_where(i, t)}; every value must be "
+            f"{source}: column {name!r} is {what} at {_where(i, t, first_row)}; every value must be "
             "finite: fill the gap (e.g. interpolate) or drop that row"
         )
 
@@ -421,7 +601,7 @@ def check_structure(df: pd.DataFrame, *, source: str) -> np.ndarray:
     if len(bad_dt):
         i = int(bad_dt[0]) + 1
         raise LogFormatError(
-            f"{source}: column 't' is not strictly increasing at {_where(i, t)}; the previous "
+            f"{source}: column 't' is not strictly increasing at {_where(i, t, first_row)}; the previous "
             f"row has t = {float(t[i - 1])!r} s. Sort the log by t and drop repeated samples"
         )
     return t
@@ -480,7 +660,8 @@ def _argmax_abs(v: np.ndarray) -> tuple[int, float]:
 
 
 def _check_units(
-    df: pd.DataFrame, t: np.ndarray, wheel_radius: float | None, source: str
+    df: pd.DataFrame, t: np.ndarray, wheel_radius: float | None, source: str,
+    first_row: int = 0,
 ) -> None:
     cols = set(df.columns)
 
@@ -490,7 +671,7 @@ def _check_units(
         i, v = _argmax_abs(_floats(df[name]))
         if abs(v) > limit:
             raise LogFormatError(
-                f"{source}: column {name!r} reaches {v:.6g} {unit} at {_where(i, t)}, beyond "
+                f"{source}: column {name!r} reaches {v:.6g} {unit} at {_where(i, t, first_row)}, beyond "
                 f"±{limit:.4g} {unit}; {fix}"
             )
 

@@ -39,7 +39,7 @@ from __future__ import annotations
 import itertools
 import math
 import tomllib
-from collections.abc import Callable, Mapping
+from collections.abc import Callable, Iterable, Iterator, Mapping
 from dataclasses import dataclass, field, fields, replace
 from pathlib import Path
 from typing import Any
@@ -591,36 +591,79 @@ class Pipeline:
         after a gap are flagged "not
         converged" for ``validity.converge_s``, and :attr:`gaps` lists each gap (start, end).
         """
+        frames = list(self.run_pieces([log], chunk=chunk, progress=progress, total=len(log)))
+        return frames[0]
+
+    def run_pieces(self, pieces: Iterable[pd.DataFrame], chunk: int = CHUNK,
+                   progress: Callable[[float], None] | None = None,
+                   total: int | None = None) -> Iterator[pd.DataFrame]:
+        """Estimate over a log given as consecutive pieces (state reset first); yields each
+        piece's estimates as it is done, so a long log goes in bounded memory
+        (:func:`vestim.io.iter_log` reads the pieces, :class:`vestim.io.LogWriter` writes
+        them).
+
+        Every stage's state carries over from one piece to the next, and a time gap between
+        two pieces restarts the filters as one inside a piece does: the pieces concatenated are
+        :meth:`run` of the whole log, bit for bit. The first piece fixes the output columns (a
+        channel a later piece lacks is NaN there). ``progress`` gets the fraction of ``total``
+        samples done (it is not called without ``total``).
+
+        Raises:
+            LogFormatError: a piece's structure is wrong, or its ``t`` does not go on
+                increasing from the piece before.
+        """
         self.reset()
-        check_structure(log, source="Pipeline.run input")
+        self.gaps = []
         b = self.vehicle.body
-        log = corrected_log(log, self.vehicle.calibration, wheel_radius=b.wheel_radius,
-                            steering_ratio=b.steering_ratio)
-        u = inputs_from_log(log, self.vehicle)
-        n = u.t.shape[0]
-        cuts = [0, *(int(i) + 1 for i in np.flatnonzero(np.diff(u.t) > GAP_S)), n]
-        self.gaps = [(float(u.t[i - 1]), float(u.t[i])) for i in cuts[1:-1]]
-        omega, health = np.empty_like(u.omega), np.empty_like(u.omega)
-        for s_, e in itertools.pairwise(cuts):  # the health state restarts at a gap too
-            wheel_health_kernel(u.t[s_:e], np.ascontiguousarray(u.omega[s_:e]),
-                                self._health_prm, new_health_state(), omega[s_:e], health[s_:e])
-        u = replace(u, omega=omega)
-        faulty = np.any(health == 0.0, axis=1)
-
-        def advance(a: int, stop: int) -> list[ColumnGroup]:
-            if a in cuts[1:-1]:  # the first sample after a gap: start again
-                self.reset()
-            self._chunk_faulty, self._chunk_health = faulty[a:stop], health[a:stop]
-            part = _slice_inputs(u, a, stop)
-            groups = self._groups(part.t, self._advance(part))
-            if progress is not None:
-                progress(stop / max(n, 1))
-            return groups
-
-        spans = ((a, min(a + chunk, e)) for s_, e in itertools.pairwise(cuts)
-                 for a in range(s_, max(e, s_ + 1), chunk))
+        health_state = new_health_state()
+        names: list[str] = []
+        t_last, done = -math.inf, 0
         try:
-            return frame_from_chunks((advance(a, b) for a, b in spans), n)
+            for log in pieces:
+                check_structure(log, source="Pipeline.run input", first_row=done)
+                log = corrected_log(log, self.vehicle.calibration, wheel_radius=b.wheel_radius,
+                                    steering_ratio=b.steering_ratio)
+                u = inputs_from_log(log, self.vehicle)
+                n = u.t.shape[0]
+                if not u.t[0] > t_last:
+                    raise LogFormatError(
+                        f"Pipeline.run input: column 't' is not strictly increasing at row {done}"
+                        f" (t = {u.t[0]!r} s after t = {t_last!r} s); give the pieces in order")
+                # the first sample after each gap (and the piece's first, after one between
+                # pieces): the filters and the wheel health start again there
+                after = np.flatnonzero(np.diff(np.concatenate(([t_last], u.t))) > GAP_S)
+                restarts = [int(i) for i in after if t_last > -math.inf or i > 0]
+                self.gaps += [(float(t_last if i == 0 else u.t[i - 1]), float(u.t[i]))
+                              for i in restarts]
+                cuts = [0, *(i for i in restarts if i > 0), n]
+                omega, health = np.empty_like(u.omega), np.empty_like(u.omega)
+                for s_, e in itertools.pairwise(cuts):
+                    if s_ in restarts:
+                        health_state = new_health_state()
+                    wheel_health_kernel(u.t[s_:e], np.ascontiguousarray(u.omega[s_:e]),
+                                        self._health_prm, health_state, omega[s_:e],
+                                        health[s_:e])
+                u = replace(u, omega=omega)
+                faulty = np.any(health == 0.0, axis=1)
+                spans = [(a, min(a + chunk, e)) for s_, e in itertools.pairwise(cuts)
+                         for a in range(s_, max(e, s_ + 1), chunk)]
+
+                def advance(a: int, stop: int, u: Inputs = u, faulty: np.ndarray = faulty,
+                            health: np.ndarray = health,
+                            restarts: list[int] = restarts, done: int = done,
+                            ) -> list[ColumnGroup]:
+                    if a in restarts:  # the first sample after a gap: start again
+                        self.reset()
+                    self._chunk_faulty, self._chunk_health = faulty[a:stop], health[a:stop]
+                    groups = self._groups(u.t[a:stop], self._advance(_slice_inputs(u, a, stop)))
+                    if progress is not None and total:
+                        progress(min((done + stop) / total, 1.0))
+                    return groups
+
+                frame = frame_from_chunks((advance(a, e) for a, e in spans), n, names)
+                names = list(frame.columns)
+                t_last, done = float(u.t[-1]), done + n
+                yield frame
         finally:
             self._chunk_faulty = self._chunk_health = None
 

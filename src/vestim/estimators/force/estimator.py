@@ -49,7 +49,7 @@ Missing channels (``shared/spec/log-format.md``; the gap of 001 Sec. VI):
 
 from __future__ import annotations
 
-from collections.abc import Iterable, Mapping
+from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -392,17 +392,19 @@ def columns_from_groups(groups: list[ColumnGroup]) -> dict[str, np.ndarray]:
     return cols
 
 
-def frame_from_chunks(chunks: Iterable[list[ColumnGroup]], n: int) -> pd.DataFrame:
+def frame_from_chunks(chunks: Iterable[list[ColumnGroup]], n: int,
+                      names: Sequence[str] = ()) -> pd.DataFrame:
     """One float64 DataFrame from consecutive chunks of column groups (n samples in all).
 
-    The first chunk fixes the columns; a later chunk fills its rows of the block, and a
-    column it lacks is NaN there. The block is filled as its transpose (pandas stores a
+    The first chunk fixes the columns, unless ``names`` does (the columns of the earlier
+    pieces of a log estimated piece by piece); a later chunk fills its rows of the block, and
+    a column it lacks is NaN there. The block is filled as its transpose (pandas stores a
     float block as (columns, samples)), so each group is one strided copy and the frame
     is not copied again.
     """
-    names: list[str] = []
-    rows: dict[str, int] = {}
-    block = np.empty((0, n))
+    names = list(names)
+    rows: dict[str, int] = {name: j for j, name in enumerate(names)}
+    block = np.empty((len(names), n))
     start = 0
     for groups in chunks:
         if not names:
