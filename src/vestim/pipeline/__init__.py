@@ -70,6 +70,14 @@ from vestim.estimators.friction import (
 from vestim.estimators.fusion import FUSION_METHODS, FusionParams, confidences, fuse
 from vestim.estimators.health import HealthParams, health_params, wheel_health_kernel
 from vestim.estimators.health import new_state as new_health_state
+from vestim.estimators.uncertainty import OUTPUT_NAMES as SIGMA_NAMES
+from vestim.estimators.uncertainty import (
+    UncertaintyParams,
+    uncertainty,
+    uncertainty_kernel,
+    uncertainty_params,
+)
+from vestim.estimators.uncertainty import new_state as new_uncertainty_state
 from vestim.estimators.validity import GROUPS as VALIDITY_GROUPS
 from vestim.estimators.validity import MASKS as VALIDITY_MASKS
 from vestim.estimators.validity import ValidityParams, validity, validity_params
@@ -147,6 +155,8 @@ class PipelineConfig:
         fusion_params: parameters of the fusion stage.
         friction: the road-friction-potential stage (:mod:`vestim.estimators.friction`).
         validity: thresholds of the validity flags (:mod:`vestim.estimators.validity`).
+        health: thresholds of the wheel-speed health test (:mod:`vestim.estimators.health`).
+        uncertainty: the σ models of every channel (:mod:`vestim.estimators.uncertainty`).
         gains: path of a gains file from ``vestim design lpv`` for the "lpv" observers
             (default: 001's constant gains).
     """
@@ -162,6 +172,7 @@ class PipelineConfig:
     friction: FrictionParams = field(default_factory=FrictionParams)
     validity: ValidityParams = field(default_factory=ValidityParams)
     health: HealthParams = field(default_factory=HealthParams)
+    uncertainty: UncertaintyParams = field(default_factory=UncertaintyParams)
     gains: str | None = None
 
     def __post_init__(self) -> None:
@@ -193,7 +204,7 @@ class PipelineConfig:
             raise PipelineConfigError(f"{path}: no [pipeline] table")
         allowed = {f.name for f in fields(cls)} - {"reference", "fusion_params", "cornering",
                                                 "radius", "friction", "validity",
-                                                "health"}
+                                                "health", "uncertainty"}
         unknown = sorted(set(table) - allowed)
         if unknown:
             raise PipelineConfigError(f"{path}: [pipeline] has unknown key(s) {', '.join(unknown)};"
@@ -268,6 +279,9 @@ class Pipeline:
         self.gaps: list[tuple[float, float]] = []  # time gaps (s) the filters restarted after
         self._health_prm = health_params(self.config.health, vehicle.body.wheel_radius)
         self._health_state = new_health_state()
+        self._unc_prm = uncertainty_params(vehicle, self.config.uncertainty)
+        self._unc_state = new_uncertainty_state()
+        self._unc_buf: tuple[np.ndarray, ...] | None = None  # step()'s buffers, made once
         self._health_buf = (np.empty(1), np.empty((1, 4)), np.empty((1, 4)), np.empty((1, 4)))
         # health and "input faulty" rows of the block _advance is working on (run and step)
         self._chunk_faulty: np.ndarray | None = None
@@ -290,6 +304,7 @@ class Pipeline:
         self._t_prev_step = -math.inf
         self._last_good = (-math.inf, {})
         self._health_state = new_health_state()
+        self._unc_state = new_uncertainty_state()
         self._t_start = math.nan  # first sample time, for the validity flags' convergence
         self._held_now = False  # step() held a dropped input in this sample
         self._t_gnss = np.nan
@@ -463,6 +478,12 @@ class Pipeline:
             scale = np.full(n, np.nan)
             latency = np.full(n, np.nan)
         slip_angle = kin.slip_angle(vxt, vyt)
+        # σ of every channel (the estimates themselves are unchanged; friction and validity
+        # below use the filter's σ_vy as before).
+        unc = uncertainty(u.t, v, sig, u.yaw_rate, u.delta, u.omega,
+                          u.ax if u.ax_measured else res["f_x"], u.ay, fz, vxt, vyt, slip_ratio,
+                          c_y, self._unc_prm, self._unc_state)
+        res.update({f"uncertainty.{k}": a for k, a in unc.items()})
         res.update({"v": v, "sigma_v": sig, "bias": bias, "vx_i": vx_i, "vy_i": vy_i,
                     "cornering_stiffness": c_y, "radius_scale": scale,
                     "gnss_latency": latency,
@@ -493,9 +514,23 @@ class Pipeline:
             return [f"{prefix}_{c}" for c in CORNERS]
 
         wheels = bool(res["wheel_speeds"])  # else the outputs of WHEEL_ONLY_OUTPUTS are left out
+        unc = {k.removeprefix("uncertainty."): a for k, a in res.items()
+               if k.startswith("uncertainty.")}
+
+        def sigma(*quantities: str) -> list[ColumnGroup]:
+            return [(names(f"sigma_{q}"), np.column_stack([unc[f"sigma_{q}_{c}"] for c in CORNERS]))
+                    for q in quantities]
+
         groups: list[ColumnGroup] = [(["t"], t), (["vx", "vy"], res["v"])]
-        if not np.all(np.isnan(res["sigma_v"])):
-            groups.append((["sigma_vx", "sigma_vy"], res["sigma_v"]))
+        velocity_sigma = not np.all(np.isnan(res["sigma_v"]))  # the methods with a filter σ
+        if velocity_sigma:
+            groups.append((["sigma_vx", "sigma_vy"],
+                           np.column_stack((unc["sigma_vx"], unc["sigma_vy"]))))
+            groups += sigma("vx", "vy", "vxt", "vyt", "slip_angle")
+            if wheels:
+                groups += sigma("slip_ratio")
+        groups += [*sigma("fz"), (["sigma_roll", "sigma_pitch"],
+                                  np.column_stack((unc["sigma_roll"], unc["sigma_pitch"])))]
         groups += [(names("vx"), res["vx_i"]), (names("vy"), res["vy_i"]),
                    (names("vxt"), res["vxt"]), (names("vyt"), res["vyt"])]
         if wheels:
@@ -774,6 +809,32 @@ class Pipeline:
         health = self._chunk_health
         for j, c in enumerate(CORNERS):
             row[f"health_omega_{c}"] = 1.0 if health is None else float(health[0, j])
+        self._fast_sigma(out, vec, ay, row)
+
+    def _fast_sigma(self, out: np.ndarray, vec: list[float], ay: float,
+                    row: dict[str, float]) -> None:
+        """The uncertainty stage for one sample of the compiled path (the kernel of
+        :meth:`_advance`, on buffers made once)."""
+        if self._unc_buf is None:
+            at = {name: j for j, name in enumerate(self._step_names)}
+
+            def ix(q: str) -> np.ndarray:
+                return np.array([at[f"{q}_{c}"] for c in CORNERS], dtype=np.int64)
+
+            self._unc_buf = (np.array([at["vx"], at["vy"]]), np.array([at["sigma_vx"],
+                                                                      at["sigma_vy"]]),
+                             ix("fz"), ix("vxt"), ix("vyt"), ix("slip_ratio"),
+                             np.array([at["cornering_stiffness"]]), np.zeros((1, 4)),
+                             np.empty((1, len(SIGMA_NAMES))))
+        i_v, i_s, i_fz, i_xt, i_yt, i_sl, i_cy, delta, sig = self._unc_buf
+        delta[0, 0], delta[0, 1] = vec[15], vec[16]
+        uncertainty_kernel(np.array([vec[0]]), out[i_v][None, :], out[i_s][None, :],
+                           np.array([vec[12]]), delta, np.array([vec[1:5]]),
+                           np.array([vec[9]]), np.array([ay]), out[i_fz][None, :],
+                           out[i_xt][None, :], out[i_yt][None, :], out[i_sl][None, :],
+                           out[i_cy], self._unc_prm, self._unc_state, sig)
+        for j, name in enumerate(SIGMA_NAMES):
+            row[name] = float(sig[0, j])
 
 
 def estimate(
