@@ -68,7 +68,15 @@ from vestim.estimators.friction import (
     friction_potential,
 )
 from vestim.estimators.fusion import FUSION_METHODS, FusionParams, confidences, fuse
-from vestim.estimators.health import HealthParams, health_params, wheel_health_kernel
+from vestim.estimators.health import (
+    HealthParams,
+    ImuHealthParams,
+    health_params,
+    imu_health_kernel,
+    imu_health_params,
+    new_imu_state,
+    wheel_health_kernel,
+)
 from vestim.estimators.health import new_state as new_health_state
 from vestim.estimators.uncertainty import OUTPUT_NAMES as SIGMA_NAMES
 from vestim.estimators.uncertainty import (
@@ -156,6 +164,7 @@ class PipelineConfig:
         friction: the road-friction-potential stage (:mod:`vestim.estimators.friction`).
         validity: thresholds of the validity flags (:mod:`vestim.estimators.validity`).
         health: thresholds of the wheel-speed health test (:mod:`vestim.estimators.health`).
+        imu_health: thresholds of the IMU health test (:mod:`vestim.estimators.health.imu`).
         uncertainty: the σ models of every channel (:mod:`vestim.estimators.uncertainty`).
         gains: path of a gains file from ``vestim design lpv`` for the "lpv" observers
             (default: 001's constant gains).
@@ -172,6 +181,7 @@ class PipelineConfig:
     friction: FrictionParams = field(default_factory=FrictionParams)
     validity: ValidityParams = field(default_factory=ValidityParams)
     health: HealthParams = field(default_factory=HealthParams)
+    imu_health: ImuHealthParams = field(default_factory=ImuHealthParams)
     uncertainty: UncertaintyParams = field(default_factory=UncertaintyParams)
     gains: str | None = None
 
@@ -204,7 +214,7 @@ class PipelineConfig:
             raise PipelineConfigError(f"{path}: no [pipeline] table")
         allowed = {f.name for f in fields(cls)} - {"reference", "fusion_params", "cornering",
                                                 "radius", "friction", "validity",
-                                                "health", "uncertainty"}
+                                                "health", "imu_health", "uncertainty"}
         unknown = sorted(set(table) - allowed)
         if unknown:
             raise PipelineConfigError(f"{path}: [pipeline] has unknown key(s) {', '.join(unknown)};"
@@ -279,6 +289,12 @@ class Pipeline:
         self.gaps: list[tuple[float, float]] = []  # time gaps (s) the filters restarted after
         self._health_prm = health_params(self.config.health, vehicle.body.wheel_radius)
         self._health_state = new_health_state()
+        self._imu_prm = imu_health_params(self.config.imu_health, b.wheel_radius, b.track_f,
+                                          b.track_r, b.lf)
+        self._imu_state = new_imu_state()
+        self._imu_buf = (np.empty(1), np.empty((3, 1)), np.empty((1, 4)), np.zeros((1, 4)),
+                         np.empty((3, 1)), np.empty((1, 3)))
+        self._chunk_imu: np.ndarray | None = None  # IMU health rows of the block (run, step)
         self._unc_prm = uncertainty_params(vehicle, self.config.uncertainty)
         self._unc_state = new_uncertainty_state()
         self._unc_buf: tuple[np.ndarray, ...] | None = None  # step()'s buffers, made once
@@ -304,6 +320,7 @@ class Pipeline:
         self._t_prev_step = -math.inf
         self._last_good = (-math.inf, {})
         self._health_state = new_health_state()
+        self._imu_state = new_imu_state()
         self._unc_state = new_uncertainty_state()
         self._t_start = math.nan  # first sample time, for the validity flags' convergence
         self._held_now = False  # step() held a dropped input in this sample
@@ -499,6 +516,7 @@ class Pipeline:
         if wheels:
             res["health_omega"] = (self._chunk_health if self._chunk_health is not None
                                    else np.ones((n, 4)))
+        res["health_imu"] = self._chunk_imu if self._chunk_imu is not None else np.ones((n, 3))
         res.update(validity(u.t, self._t_start, v[:, 0], slip_ratio, slip_angle,
                             u.delta[:, :2], u.ay,
                             self._chunk_faulty if self._chunk_faulty is not None
@@ -549,6 +567,7 @@ class Pipeline:
         groups += [([k], res[k]) for k in validity_names()]
         if "health_omega" in res:
             groups.append(([f"health_omega_{c}" for c in CORNERS], res["health_omega"]))
+        groups.append((["health_ax", "health_ay", "health_yaw_rate"], res["health_imu"]))
         return groups
 
     def _wheel_health(self, sample: Mapping[str, float]) -> Mapping[str, float]:
@@ -573,6 +592,35 @@ class Pipeline:
         fixed = dict(sample)
         for j, c in enumerate(CORNERS):
             fixed[f"omega_{c}"] = float(out[0, j])
+        return fixed
+
+    def _imu_health(self, sample: Mapping[str, float]) -> Mapping[str, float]:
+        """:mod:`vestim.estimators.health.imu` on one sample (the kernel and state of run(),
+        after the wheel health and the calibration, as there)."""
+        t, x, w, delta, out, health = self._imu_buf
+        t[0] = float(sample["t"])
+        for j, key in enumerate(("ax", "ay", "yaw_rate")):
+            x[j, 0] = float(sample.get(key, np.nan))
+        for j, c in enumerate(CORNERS):
+            w[0, j] = float(sample.get(f"omega_{c}", np.nan))
+        if "delta_fl" in sample and "delta_fr" in sample:
+            delta[0, 0], delta[0, 1] = float(sample["delta_fl"]), float(sample["delta_fr"])
+        else:
+            d = (float(sample["delta"]) if "delta" in sample else
+                 float(sample.get("steering_wheel_angle", 0.0))
+                 / self.vehicle.body.steering_ratio)
+            delta[0, 0] = delta[0, 1] = d
+        imu_health_kernel(t, x[0], x[1], x[2], w, delta, self._imu_prm, self._imu_state,
+                          out[0], out[1], out[2], health)
+        self._chunk_imu = health
+        if health[0].min() == 1.0:
+            return sample
+        self._held_now = True
+        self._chunk_faulty = np.array([True])
+        fixed = dict(sample)
+        for j, key in enumerate(("ax", "ay", "yaw_rate")):
+            if key in fixed:
+                fixed[key] = float(out[j, 0])
         return fixed
 
     def _hold_gaps(self, sample: Mapping[str, float]) -> Mapping[str, float]:
@@ -650,7 +698,7 @@ class Pipeline:
         self.reset()
         self.gaps = []
         b = self.vehicle.body
-        health_state = new_health_state()
+        health_state, imu_state = new_health_state(), new_imu_state()
         names: list[str] = []
         t_last, done = -math.inf, 0
         try:
@@ -672,24 +720,31 @@ class Pipeline:
                               for i in restarts]
                 cuts = [0, *(i for i in restarts if i > 0), n]
                 omega, health = np.empty_like(u.omega), np.empty_like(u.omega)
+                imu = np.empty((3, n))  # a_x, a_y, yaw rate with the faulty readings replaced
+                imu_health = np.empty((n, 3))
                 for s_, e in itertools.pairwise(cuts):
                     if s_ in restarts:
-                        health_state = new_health_state()
+                        health_state, imu_state = new_health_state(), new_imu_state()
                     wheel_health_kernel(u.t[s_:e], np.ascontiguousarray(u.omega[s_:e]),
                                         self._health_prm, health_state, omega[s_:e],
                                         health[s_:e])
-                u = replace(u, omega=omega)
-                faulty = np.any(health == 0.0, axis=1)
+                    imu_health_kernel(u.t[s_:e], u.ax[s_:e], u.ay[s_:e], u.yaw_rate[s_:e],
+                                      omega[s_:e], np.ascontiguousarray(u.delta[s_:e]),
+                                      self._imu_prm, imu_state, imu[0, s_:e], imu[1, s_:e],
+                                      imu[2, s_:e], imu_health[s_:e])
+                u = replace(u, omega=omega, ax=imu[0], ay=imu[1], yaw_rate=imu[2])
+                faulty = np.any(health == 0.0, axis=1) | np.any(imu_health == 0.0, axis=1)
                 spans = [(a, min(a + chunk, e)) for s_, e in itertools.pairwise(cuts)
                          for a in range(s_, max(e, s_ + 1), chunk)]
 
                 def advance(a: int, stop: int, u: Inputs = u, faulty: np.ndarray = faulty,
-                            health: np.ndarray = health,
+                            health: np.ndarray = health, imu_health: np.ndarray = imu_health,
                             restarts: list[int] = restarts, done: int = done,
                             ) -> list[ColumnGroup]:
                     if a in restarts:  # the first sample after a gap: start again
                         self.reset()
                     self._chunk_faulty, self._chunk_health = faulty[a:stop], health[a:stop]
+                    self._chunk_imu = imu_health[a:stop]
                     groups = self._groups(u.t[a:stop], self._advance(_slice_inputs(u, a, stop)))
                     if progress is not None and total:
                         progress(min((done + stop) / total, 1.0))
@@ -700,7 +755,7 @@ class Pipeline:
                 t_last, done = float(u.t[-1]), done + n
                 yield frame
         finally:
-            self._chunk_faulty = self._chunk_health = None
+            self._chunk_faulty = self._chunk_health = self._chunk_imu = None
 
     def step(self, sample: Mapping[str, float]) -> dict[str, float]:
         """Advance by one sample (mapping of the log's column names); return that row.
@@ -729,6 +784,7 @@ class Pipeline:
             cols = {k: np.array([float(v)]) for k, v in sample.items()}
             correct_columns(cols, cal, wheel_radius=b.wheel_radius, steering_ratio=b.steering_ratio)
             sample = {k: float(v[0]) for k, v in cols.items()}
+        sample = self._imu_health(sample)
         row = self._fast_step(sample)
         if row is not None:
             return row
@@ -809,6 +865,9 @@ class Pipeline:
         health = self._chunk_health
         for j, c in enumerate(CORNERS):
             row[f"health_omega_{c}"] = 1.0 if health is None else float(health[0, j])
+        imu = self._chunk_imu
+        for j, key in enumerate(("ax", "ay", "yaw_rate")):
+            row[f"health_{key}"] = 1.0 if imu is None else float(imu[0, j])
         self._fast_sigma(out, vec, ay, row)
 
     def _fast_sigma(self, out: np.ndarray, vec: list[float], ay: float,

@@ -28,6 +28,11 @@ from dataclasses import dataclass
 import numpy as np
 from numba import njit
 
+from vestim.estimators.health.imu import ImuHealthParams as ImuHealthParams
+from vestim.estimators.health.imu import imu_health_kernel as imu_health_kernel
+from vestim.estimators.health.imu import imu_health_params as imu_health_params
+from vestim.estimators.health.imu import new_imu_state as new_imu_state
+
 
 @dataclass(frozen=True)
 class HealthParams:
