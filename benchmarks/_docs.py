@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import argparse
+from collections.abc import Callable
 from pathlib import Path
 
 RESULTS = Path(__file__).resolve().parents[1] / "docs" / "results.md"
@@ -20,6 +22,21 @@ def write_section(name: str, text: str, after: str | None = None, path: Path = R
         key = after if after is not None and after in doc else doc.partition("\n")[0]
         head, _, tail = doc.partition(key)
         pre, post = head + key + "\n\n", "\n" + tail.lstrip("\n")
+    write_page(path, f"{pre}{begin}\n{text}\n{end}{post}")
+
+
+def write_page(path: Path, text: str) -> None:
+    """Write a whole Markdown page atomically (temporary file, then rename)."""
     tmp = path.with_suffix(".md.tmp")
-    tmp.write_text(f"{pre}{begin}\n{text}\n{end}{post}", encoding="utf-8")
+    tmp.write_text(text, encoding="utf-8")
     tmp.replace(path)
+
+
+def page_main(doc: str, build: Callable[[], str], out: Path) -> None:
+    """The command line of a script that generates one docs page: ``--out`` (default
+    ``out``), the page from ``build()``, written atomically."""
+    ap = argparse.ArgumentParser(description=doc.split("\n\n")[0])
+    ap.add_argument("--out", type=Path, default=out)
+    args = ap.parse_args()
+    write_page(args.out, build())
+    print(f"wrote {args.out}")

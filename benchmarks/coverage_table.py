@@ -206,8 +206,11 @@ def main() -> None:
              "68 / 95; a calibrated σ: 60–80 / 90–98), per channel family. S:/C: are our "
              "simulator's runs (hashemi_suv / compact_car, seed 1; the fitted "
              "coefficients come from seed 0). `benchmarks/coverage_table.py`.", "",
-             "Before (the pipeline's own σ):", "", *_markdown(pd.concat(before), logs), "",
-             "After (with `vestim.estimators.uncertainty`):", "",
+             "Before: σ_vx, σ_vy as the reference filter's own √P "
+             "(`UncertaintyParams.filter_only()`; the other channels' σ propagated from it):",
+             "", *_markdown(pd.concat(before), logs), "",
+             "After: the default (`vestim.estimators.uncertainty` with its default "
+             "coefficients, as `vestim estimate` writes it):", "",
              *_markdown(pd.concat(after), logs), "",
              "Average NEES of (v_x, v_y) (expected 2; the band is the 95 % χ² band of the "
              "time average for independent samples — the errors are correlated over "

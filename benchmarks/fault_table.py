@@ -19,7 +19,6 @@ injectors are ``benchmarks/input_checks_table.py``'s, on the logs named there.
 
 from __future__ import annotations
 
-import argparse
 import json
 import math
 import sys
@@ -329,14 +328,9 @@ mistake is shown on the logs that excite it (those of `benchmarks/input_checks_t
 
 
 def main() -> None:
-    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    ap.add_argument("--out", type=Path, default=OUT)
-    args = ap.parse_args()
-    text = build()
-    tmp = args.out.with_suffix(".md.tmp")
-    tmp.write_text(text, encoding="utf-8")
-    tmp.replace(args.out)
-    print(f"wrote {args.out}")
+    import _docs
+
+    _docs.page_main(__doc__, build, OUT)
 
 
 if __name__ == "__main__":

@@ -110,9 +110,9 @@ def main() -> None:
         if BEGIN in old and END in old:
             head, rest = old.split(BEGIN, 1)
             text = f"{head}{BEGIN}\n{text}{END}{rest.split(END, 1)[1]}"
-        tmp = args.out.with_suffix(".md.tmp")
-        tmp.write_text(text, encoding="utf-8")
-        tmp.replace(args.out)
+        import _docs
+
+        _docs.write_page(args.out, text)
     else:
         sys.stdout.write(text)
 

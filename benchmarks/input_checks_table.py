@@ -12,7 +12,6 @@ and the log is put through ``vestim.io.check_log`` (which runs ``validate_log`` 
 
 from __future__ import annotations
 
-import argparse
 import json
 import math
 import tempfile
@@ -346,14 +345,9 @@ is in each constant's docstring (reproduced here):
 
 
 def main() -> None:
-    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    ap.add_argument("--out", type=Path, default=OUT)
-    args = ap.parse_args()
-    text = build()
-    tmp = args.out.with_suffix(".md.tmp")
-    tmp.write_text(text, encoding="utf-8")
-    tmp.replace(args.out)
-    print(f"wrote {args.out}")
+    import _docs
+
+    _docs.page_main(__doc__, build, OUT)
 
 
 if __name__ == "__main__":
