@@ -68,7 +68,7 @@ def posthoc_sigma(est: pd.DataFrame, log: pd.DataFrame, vehicle: Vehicle,
     slip = (_corners(est, "slip_ratio") if "slip_ratio_fl" in est
             else np.full((n, 4), np.nan))
     ax = u.ax if np.all(np.isfinite(u.ax)) else np.zeros(n)
-    out = uncertainty(u.t, est[["vx", "vy"]].to_numpy(dtype=float), sig_v, u.yaw_rate, u.delta,
+    out = uncertainty(u.t, est[["vx", "vy"]].to_numpy(dtype=float), sig_v, u.delta,
                       omega, ax, u.ay, _corners(est, "fz"), _corners(est, "vxt"),
                       _corners(est, "vyt"), slip, est["cornering_stiffness"].to_numpy(),
                       uncertainty_params(vehicle, params))

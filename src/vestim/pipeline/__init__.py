@@ -82,7 +82,6 @@ from vestim.estimators.uncertainty import OUTPUT_NAMES as SIGMA_NAMES
 from vestim.estimators.uncertainty import (
     UncertaintyParams,
     uncertainty,
-    uncertainty_kernel,
     uncertainty_params,
 )
 from vestim.estimators.uncertainty import new_state as new_uncertainty_state
@@ -297,7 +296,7 @@ class Pipeline:
         self._chunk_imu: np.ndarray | None = None  # IMU health rows of the block (run, step)
         self._unc_prm = uncertainty_params(vehicle, self.config.uncertainty)
         self._unc_state = new_uncertainty_state()
-        self._unc_buf: tuple[np.ndarray, ...] | None = None  # step()'s buffers, made once
+        self._unc_buf: tuple[np.ndarray, np.ndarray] | None = None  # step()'s index, buffer
         self._health_buf = (np.empty(1), np.empty((1, 4)), np.empty((1, 4)), np.empty((1, 4)))
         # health and "input faulty" rows of the block _advance is working on (run and step)
         self._chunk_faulty: np.ndarray | None = None
@@ -497,7 +496,7 @@ class Pipeline:
         slip_angle = kin.slip_angle(vxt, vyt)
         # σ of every channel (the estimates themselves are unchanged; friction and validity
         # below use the filter's σ_vy as before).
-        unc = uncertainty(u.t, v, sig, u.yaw_rate, u.delta, u.omega,
+        unc = uncertainty(u.t, v, sig, u.delta, u.omega,
                           u.ax if u.ax_measured else res["f_x"], u.ay, fz, vxt, vyt, slip_ratio,
                           c_y, self._unc_prm, self._unc_state)
         res.update({f"uncertainty.{k}": a for k, a in unc.items()})
@@ -835,13 +834,13 @@ class Pipeline:
         row = dict(zip(self._step_names, out.tolist(), strict=True))
         row["radius_scale"] = 1.0  # no gnss_speed on this path
         row["gnss_latency"] = 0.0
-        self._fast_post(out, vec, float(sample["ay"]), row)
+        self._fast_post(out, s, row)
         return row
 
-    def _fast_post(self, out: np.ndarray, vec: list[float], ay: float,
-                   row: dict[str, float]) -> None:
-        """The friction and validity stages for one sample of the compiled path, on buffers
-        made once (the same kernels as :meth:`_advance`)."""
+    def _fast_post(self, out: np.ndarray, s: np.ndarray, row: dict[str, float]) -> None:
+        """The friction, validity and uncertainty stages for one sample ``s`` (layout of
+        :data:`~vestim.pipeline.online.SAMPLE_KEYS` + δ_fl, δ_fr) of the compiled path, on
+        buffers made once (the same kernels as :meth:`_advance`)."""
         if self._post is None:
             at = {name: j for j, name in enumerate(self._step_names)}
             ix = [at["t"], at["vx"], at["sigma_vy"], at["cornering_stiffness"]]
@@ -853,7 +852,7 @@ class Pipeline:
         ix, mu, smu, ex, valid, reason, vprm = self._post
         if math.isnan(self._t_start):
             self._t_start = float(out[ix[0]])
-        online.post_step_kernel(out, ix, vec[15], vec[16], ay, self._held_now, self._t_start,
+        online.post_step_kernel(out, ix, s[15], s[16], s[10], self._held_now, self._t_start,
                                 self.config.friction.sigma_vy_floor, self._friction_prm,
                                 self._friction_kx, self._friction_state, vprm, VALIDITY_MASKS,
                                 mu, smu, ex, valid, reason)
@@ -868,32 +867,19 @@ class Pipeline:
         imu = self._chunk_imu
         for j, key in enumerate(("ax", "ay", "yaw_rate")):
             row[f"health_{key}"] = 1.0 if imu is None else float(imu[0, j])
-        self._fast_sigma(out, vec, ay, row)
+        self._fast_sigma(out, s, row)
 
-    def _fast_sigma(self, out: np.ndarray, vec: list[float], ay: float,
-                    row: dict[str, float]) -> None:
+    def _fast_sigma(self, out: np.ndarray, s: np.ndarray, row: dict[str, float]) -> None:
         """The uncertainty stage for one sample of the compiled path (the kernel of
-        :meth:`_advance`, on buffers made once)."""
+        :meth:`_advance`, through :func:`~vestim.pipeline.online.uncertainty_step_kernel`)."""
         if self._unc_buf is None:
             at = {name: j for j, name in enumerate(self._step_names)}
-
-            def ix(q: str) -> np.ndarray:
-                return np.array([at[f"{q}_{c}"] for c in CORNERS], dtype=np.int64)
-
-            self._unc_buf = (np.array([at["vx"], at["vy"]]), np.array([at["sigma_vx"],
-                                                                      at["sigma_vy"]]),
-                             ix("fz"), ix("vxt"), ix("vyt"), ix("slip_ratio"),
-                             np.array([at["cornering_stiffness"]]), np.zeros((1, 4)),
-                             np.empty((1, len(SIGMA_NAMES))))
-        i_v, i_s, i_fz, i_xt, i_yt, i_sl, i_cy, delta, sig = self._unc_buf
-        delta[0, 0], delta[0, 1] = vec[15], vec[16]
-        uncertainty_kernel(np.array([vec[0]]), out[i_v][None, :], out[i_s][None, :],
-                           np.array([vec[12]]), delta, np.array([vec[1:5]]),
-                           np.array([vec[9]]), np.array([ay]), out[i_fz][None, :],
-                           out[i_xt][None, :], out[i_yt][None, :], out[i_sl][None, :],
-                           out[i_cy], self._unc_prm, self._unc_state, sig)
-        for j, name in enumerate(SIGMA_NAMES):
-            row[name] = float(sig[0, j])
+            ix = [at[k] for k in ("vx", "vy", "sigma_vx", "sigma_vy", "cornering_stiffness")]
+            ix += [at[f"{q}_{c}"] for q in ("fz", "vxt", "vyt", "slip_ratio") for c in CORNERS]
+            self._unc_buf = (np.array(ix, dtype=np.int64), np.empty((1, len(SIGMA_NAMES))))
+        ix_, sig = self._unc_buf
+        online.uncertainty_step_kernel(out, ix_, s, self._unc_prm, self._unc_state, sig)
+        row.update(zip(SIGMA_NAMES, sig[0].tolist(), strict=True))
 
 
 def estimate(

@@ -34,6 +34,7 @@ from vestim.estimators.force.normal import (
 )
 from vestim.estimators.friction import friction_kernel
 from vestim.estimators.fusion.axle import adaptive_axle_kernel, fixed_axle_kernel
+from vestim.estimators.uncertainty import uncertainty_kernel
 from vestim.estimators.validity import validity_kernel
 from vestim.estimators.velocity.lugre_kf import KFParams, lugre_kf_kernel
 from vestim.estimators.velocity.reference import axle_slip_angles, reference_kernel
@@ -364,3 +365,29 @@ def post_step_kernel(out: np.ndarray, ix: np.ndarray, delta_l: float, delta_r: f
     h = np.empty(1, dtype=np.bool_)
     h[0] = held
     validity_kernel(t, t_start, vx, sr, sa, delta, a, h, vprm, masks, valid, reason)
+
+
+@njit(**_JIT)
+def uncertainty_step_kernel(out: np.ndarray, ix: np.ndarray, s: np.ndarray, prm: np.ndarray,
+                            state: np.ndarray, sig: np.ndarray) -> None:
+    """The uncertainty stage of one sample of :func:`step_kernel`'s output row ``out``
+    (:func:`~vestim.estimators.uncertainty.uncertainty_kernel`, as the batch path calls it),
+    into ``sig`` (1, N_OUT).
+
+    ``ix`` holds the positions in ``out`` of v_x, v_y, σ_vx, σ_vy (the filter's), the
+    cornering stiffness, then per corner F_z, v_xt, v_yt, slip ratio (4 each); ``s`` is the
+    sample (layout :data:`SAMPLE_KEYS` + δ_fl, δ_fr).
+    """
+    t, ax, ay, cy = np.empty(1), np.empty(1), np.empty(1), np.empty(1)
+    t[0], ax[0], ay[0], cy[0] = s[0], s[9], s[10], out[ix[4]]
+    v, sv = np.empty((1, 2)), np.empty((1, 2))
+    v[0, 0], v[0, 1], sv[0, 0], sv[0, 1] = out[ix[0]], out[ix[1]], out[ix[2]], out[ix[3]]
+    delta = np.zeros((1, 4))
+    delta[0, 0], delta[0, 1] = s[15], s[16]
+    omega, fz, vxt, vyt, slip = (np.empty((1, 4)), np.empty((1, 4)), np.empty((1, 4)),
+                                 np.empty((1, 4)), np.empty((1, 4)))
+    for i in range(4):
+        omega[0, i] = s[1 + i]
+        fz[0, i], vxt[0, i] = out[ix[5 + i]], out[ix[9 + i]]
+        vyt[0, i], slip[0, i] = out[ix[13 + i]], out[ix[17 + i]]
+    uncertainty_kernel(t, v, sv, delta, omega, ax, ay, fz, vxt, vyt, slip, cy, prm, state, sig)

@@ -66,7 +66,7 @@ def _one(vx: float, vy: float, r: float, delta: float, omega: float, ax: float =
     fz = normal_loads_kernel(np.array([ax]), np.array([ay]), np.array([9.81]), np.zeros(1),
                              np.zeros(1), np.full(1, np.nan), np.full(1, np.nan), np.zeros(1),
                              np.zeros(1), normal_load_params(veh), False)
-    out = uncertainty(np.array([0.0]), v, np.array([sig]), np.array([r]), d, om,
+    out = uncertainty(np.array([0.0]), v, np.array([sig]), d, om,
                       np.array([ax]), np.array([ay]), fz, vxt, vyt, slip, np.array([10.0]),
                       uncertainty_params(veh, params))
     return {k: float(a[0]) for k, a in out.items()}
@@ -205,13 +205,13 @@ def test_nan_inputs_give_nan_where_they_belong() -> None:
     d = np.zeros((1, 4))
     fz = np.full((1, 4), 5000.0)
     vt = np.full((1, 4), 10.0)
-    out = uncertainty(np.zeros(1), v, np.array([[0.1, 0.02]]), np.zeros(1), d,
+    out = uncertainty(np.zeros(1), v, np.array([[0.1, 0.02]]), d,
                       np.full((1, 4), 30.0), np.zeros(1), np.zeros(1), fz, vt,
                       np.zeros((1, 4)), np.full((1, 4), np.nan), np.array([10.0]),
                       uncertainty_params(VEH))
     assert np.isnan(out["sigma_slip_ratio_fl"][0])
     assert np.isfinite(out["sigma_slip_angle_fl"][0]) and np.isfinite(out["sigma_fz_fl"][0])
-    out = uncertainty(np.zeros(1), v, np.full((1, 2), np.nan), np.zeros(1), d,
+    out = uncertainty(np.zeros(1), v, np.full((1, 2), np.nan), d,
                       np.full((1, 4), 30.0), np.zeros(1), np.zeros(1), fz, vt,
                       np.zeros((1, 4)), np.zeros((1, 4)), np.array([10.0]),
                       uncertainty_params(VEH))
@@ -250,7 +250,7 @@ def test_wheel_noise_estimate() -> None:
     out = np.empty((n, N_OUT))
     z4 = np.zeros((n, 4))
     v = np.column_stack((0.33 * om[:, 0], np.zeros(n)))
-    uncertainty_kernel(t, v, np.full((n, 2), 0.05), np.zeros(n), z4, om, np.zeros(n),
+    uncertainty_kernel(t, v, np.full((n, 2), 0.05), z4, om, np.zeros(n),
                        np.zeros(n), np.full((n, 4), 5000.0), 0.33 * om, z4, z4,
                        np.full(n, 10.0), uncertainty_params(VEH, p), state, out)
     assert np.sqrt(state[8:12]) == pytest.approx(np.full(4, 0.3), rel=0.05)
@@ -259,7 +259,7 @@ def test_wheel_noise_estimate() -> None:
 def test_bad_shapes_raise() -> None:
     """A mis-shaped input names itself."""
     with pytest.raises(ValueError, match="'delta'"):
-        uncertainty(np.zeros(2), np.zeros((2, 2)), np.zeros((2, 2)), np.zeros(2),
+        uncertainty(np.zeros(2), np.zeros((2, 2)), np.zeros((2, 2)),
                     np.zeros((2, 2)), np.zeros((2, 4)), np.zeros(2), np.zeros(2),
                     np.zeros((2, 4)), np.zeros((2, 4)), np.zeros((2, 4)), np.zeros((2, 4)),
                     np.zeros(2), uncertainty_params(VEH))
@@ -280,8 +280,8 @@ def _arrays(est: pd.DataFrame, log: pd.DataFrame) -> tuple[np.ndarray, ...]:
     omega = log[[f"omega_{c}" for c in CORNERS]].to_numpy(dtype=float)
     col = lambda name: np.ascontiguousarray(log[name].to_numpy(dtype=float))  # noqa: E731
     return (col("t"), np.ascontiguousarray(est[["vx", "vy"]].to_numpy()),
-            np.ascontiguousarray(est[["sigma_vx", "sigma_vy"]].to_numpy()), col("yaw_rate"),
-            delta, np.ascontiguousarray(omega), col("ax"), col("ay"), _corners(est, "fz"),
+            np.ascontiguousarray(est[["sigma_vx", "sigma_vy"]].to_numpy()), delta,
+            np.ascontiguousarray(omega), col("ax"), col("ay"), _corners(est, "fz"),
             _corners(est, "vxt"), _corners(est, "vyt"), _corners(est, "slip_ratio"),
             np.ascontiguousarray(est["cornering_stiffness"].to_numpy()))
 

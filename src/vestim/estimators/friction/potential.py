@@ -54,6 +54,7 @@ from numba import njit
 
 from vestim.constants import G
 from vestim.io.vehicle import Vehicle
+from vestim.params import check_ranges
 
 _JIT: dict[str, Any] = {"cache": True, "error_model": "numpy"}
 
@@ -79,10 +80,9 @@ class FrictionParams:
             c = getattr(self, name)
             if not 1.0 <= c < 2.0:
                 raise ValueError(f"friction {name} = {c}: a Magic Formula shape factor in [1, 2)")
-        for name in ("kx_nominal", "sigma_k", "sigma_slip_ratio", "sigma_slip_angle",
-                     "excess_sigmas", "sigma_max", "u_min", "sigma_vy_floor"):
-            if not getattr(self, name) > 0:
-                raise ValueError(f"friction {name} = {getattr(self, name)} must be > 0")
+        check_ranges(self, "friction", positive=("kx_nominal", "sigma_k", "sigma_slip_ratio",
+                                                 "sigma_slip_angle", "excess_sigmas",
+                                                 "sigma_max", "u_min", "sigma_vy_floor"))
         if self.persist_s < 0:
             raise ValueError(f"friction persist_s = {self.persist_s} must be >= 0")
 

@@ -32,6 +32,7 @@ from vestim.estimators.health.imu import ImuHealthParams as ImuHealthParams
 from vestim.estimators.health.imu import imu_health_kernel as imu_health_kernel
 from vestim.estimators.health.imu import imu_health_params as imu_health_params
 from vestim.estimators.health.imu import new_imu_state as new_imu_state
+from vestim.params import check_ranges
 
 
 @dataclass(frozen=True)
@@ -47,12 +48,9 @@ class HealthParams:
     noise: float = 1.0
 
     def __post_init__(self) -> None:
-        for name in ("max_wheel_acc", "dropout_speed", "min_speed", "stuck_s", "stuck_motion",
-                     "noise"):
-            if not getattr(self, name) > 0:
-                raise ValueError(f"health {name} = {getattr(self, name)} must be > 0")
-        if self.hold_s < 0:
-            raise ValueError(f"health hold_s = {self.hold_s} must be >= 0")
+        check_ranges(self, "health", positive=("max_wheel_acc", "dropout_speed", "min_speed",
+                                               "stuck_s", "stuck_motion", "noise"),
+                     nonnegative=("hold_s",))
 
 
 def health_params(p: HealthParams, radius: float) -> np.ndarray:

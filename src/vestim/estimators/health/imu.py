@@ -46,6 +46,8 @@ from dataclasses import dataclass, fields
 import numpy as np
 from numba import njit
 
+from vestim.params import check_ranges
+
 #: state rows: one per channel (ax, ay, yaw_rate), then the shared row
 N_STATE = 18
 
@@ -127,13 +129,9 @@ class ImuHealthParams:
     gap_s: float = 0.1
 
     def __post_init__(self) -> None:
-        for f in fields(self):
-            v = getattr(self, f.name)
-            if f.name in ("valid_hold", "warm_s"):
-                if not v >= 0:
-                    raise ValueError(f"IMU health {f.name} = {v} must be >= 0")
-            elif not v > 0:
-                raise ValueError(f"IMU health {f.name} = {v} must be > 0")
+        lower = ("valid_hold", "warm_s")
+        check_ranges(self, "IMU health", nonnegative=lower,
+                     positive=(f.name for f in fields(self) if f.name not in lower))
         if not self.off_frac < 1:
             raise ValueError(f"IMU health off_frac = {self.off_frac} must be < 1 (hysteresis)")
         if int(self.sat_n) != self.sat_n or self.sat_n < 2:

@@ -75,7 +75,6 @@ on them.
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass, fields
 
 import numpy as np
@@ -84,6 +83,7 @@ from numba import njit
 from vestim.constants import CORNERS, G
 from vestim.io.vehicle import Vehicle
 from vestim.models.kinematics import corner_positions
+from vestim.params import check_ranges
 
 CALIBRATION_RUNS: tuple[tuple[str, str, int], ...] = tuple(
     (veh, man, 0)
@@ -182,13 +182,8 @@ class UncertaintyParams:
                    tau_latency=0.0, sigma_vy0=0.0, k_alpha=0.0, k_drift=0.0)
 
     def __post_init__(self) -> None:
-        for f in fields(self):
-            value = getattr(self, f.name)
-            if not (math.isfinite(value) and value >= 0):
-                raise ValueError(f"uncertainty {f.name} = {value} must be finite and >= 0")
-        for name in ("v_min", "v_min_slip", "tau_noise"):
-            if not getattr(self, name) > 0:
-                raise ValueError(f"uncertainty {name} = {getattr(self, name)} must be > 0")
+        check_ranges(self, "uncertainty", positive=("v_min", "v_min_slip", "tau_noise"),
+                     nonnegative=(f.name for f in fields(self)), finite=True)
 
 
 def uncertainty_params(vehicle: Vehicle, params: UncertaintyParams | None = None) -> np.ndarray:
@@ -216,17 +211,16 @@ def new_state() -> np.ndarray:
 
 
 @njit(cache=True, error_model="numpy")
-def uncertainty_kernel(t: np.ndarray, v: np.ndarray, sigma_v: np.ndarray, yaw_rate: np.ndarray,
-                       delta: np.ndarray, omega: np.ndarray, ax: np.ndarray, ay: np.ndarray,
-                       fz: np.ndarray, vxt: np.ndarray, vyt: np.ndarray,
-                       slip_ratio: np.ndarray, cornering_stiffness: np.ndarray,
-                       prm: np.ndarray, state: np.ndarray, out: np.ndarray) -> None:
+def uncertainty_kernel(t: np.ndarray, v: np.ndarray, sigma_v: np.ndarray, delta: np.ndarray,
+                       omega: np.ndarray, ax: np.ndarray, ay: np.ndarray, fz: np.ndarray,
+                       vxt: np.ndarray, vyt: np.ndarray, slip_ratio: np.ndarray,
+                       cornering_stiffness: np.ndarray, prm: np.ndarray, state: np.ndarray,
+                       out: np.ndarray) -> None:
     """σ of every channel over a chunk, written into ``out`` (n, :data:`N_OUT`) in the order
     of :data:`OUTPUT_NAMES`; ``state`` (:func:`new_state`) is advanced in place.
 
     Inputs (n samples): t (s), v (n, 2) the CG velocity and sigma_v (n, 2) the filter's σ
-    (m/s), yaw_rate (rad/s; the present models use the constant gyro σ only), delta (n, 4)
-    steering angle (rad), omega (n, 4) wheel speeds
+    (m/s), delta (n, 4) steering angle (rad), omega (n, 4) wheel speeds
     (rad/s), ax, ay the IMU accelerations (m/s²), fz (n, 4) normal loads (N), vxt, vyt
     (n, 4) tire-frame corner velocities (m/s), slip_ratio (n, 4) (NaN: no wheel speeds),
     cornering_stiffness the normalised C_y/ΣF_z (1/rad); ``prm`` from
@@ -341,9 +335,9 @@ def uncertainty_kernel(t: np.ndarray, v: np.ndarray, sigma_v: np.ndarray, yaw_ra
         out[k, 31] = np.sqrt(s_att0 * s_att0 + (k_att * c_pitch * ax[k]) ** 2)
 
 
-def uncertainty(t: np.ndarray, v: np.ndarray, sigma_v: np.ndarray, yaw_rate: np.ndarray,
-                delta: np.ndarray, omega: np.ndarray, ax: np.ndarray, ay: np.ndarray,
-                fz: np.ndarray, vxt: np.ndarray, vyt: np.ndarray, slip_ratio: np.ndarray,
+def uncertainty(t: np.ndarray, v: np.ndarray, sigma_v: np.ndarray, delta: np.ndarray,
+                omega: np.ndarray, ax: np.ndarray, ay: np.ndarray, fz: np.ndarray,
+                vxt: np.ndarray, vyt: np.ndarray, slip_ratio: np.ndarray,
                 cornering_stiffness: np.ndarray, prm: np.ndarray,
                 state: np.ndarray | None = None) -> dict[str, np.ndarray]:
     """:func:`uncertainty_kernel` on a chunk; returns ``{name: (n,) array}`` for every name of
@@ -354,11 +348,11 @@ def uncertainty(t: np.ndarray, v: np.ndarray, sigma_v: np.ndarray, yaw_rate: np.
     """
     n = t.shape[0]
     arrays = [np.ascontiguousarray(a, dtype=float) for a in
-              (t, v, sigma_v, yaw_rate, delta, omega, ax, ay, fz, vxt, vyt, slip_ratio,
+              (t, v, sigma_v, delta, omega, ax, ay, fz, vxt, vyt, slip_ratio,
                cornering_stiffness)]
-    names = ("t", "v", "sigma_v", "yaw_rate", "delta", "omega", "ax", "ay", "fz", "vxt", "vyt",
+    names = ("t", "v", "sigma_v", "delta", "omega", "ax", "ay", "fz", "vxt", "vyt",
              "slip_ratio", "cornering_stiffness")
-    widths = (1, 2, 2, 1, 4, 4, 1, 1, 4, 4, 4, 4, 1)
+    widths = (1, 2, 2, 4, 4, 1, 1, 4, 4, 4, 4, 1)
     for name, a, w in zip(names, arrays, widths, strict=True):
         shape = (n,) if w == 1 else (n, w)
         if a.shape != shape:
@@ -369,7 +363,7 @@ def uncertainty(t: np.ndarray, v: np.ndarray, sigma_v: np.ndarray, yaw_rate: np.
                          "uncertainty_params(vehicle)")
     st = new_state() if state is None else state
     out = np.empty((n, N_OUT))
-    (t_, v_, sv, r_, d_, om, ax_, ay_, fz_, vxt_, vyt_, sl, cy) = arrays
-    uncertainty_kernel(t_, v_, sv, r_, d_, om, ax_, ay_, fz_, vxt_, vyt_, sl, cy,
+    (t_, v_, sv, d_, om, ax_, ay_, fz_, vxt_, vyt_, sl, cy) = arrays
+    uncertainty_kernel(t_, v_, sv, d_, om, ax_, ay_, fz_, vxt_, vyt_, sl, cy,
                        np.ascontiguousarray(prm, dtype=float), st, out)
     return {name: out[:, j] for j, name in enumerate(OUTPUT_NAMES)}

@@ -24,10 +24,12 @@ in its mask.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, fields
 
 import numpy as np
 from numba import njit
+
+from vestim.params import check_ranges
 
 NOT_CONVERGED, STANDSTILL, REVERSE, HIGH_SLIP, UNOBSERVABLE, INPUT_FAULTY = 1, 2, 4, 8, 16, 32
 REASONS: dict[int, str] = {NOT_CONVERGED: "not converged", STANDSTILL: "standstill",
@@ -53,10 +55,7 @@ class ValidityParams:
     straight_ay: float = 0.3
 
     def __post_init__(self) -> None:
-        for name in ("converge_s", "standstill_speed", "high_slip_ratio", "high_slip_angle",
-                     "straight_delta", "straight_ay"):
-            if not getattr(self, name) >= 0:
-                raise ValueError(f"validity {name} = {getattr(self, name)} must be >= 0")
+        check_ranges(self, "validity", nonnegative=(f.name for f in fields(self)))
 
 
 def output_names() -> list[str]:
