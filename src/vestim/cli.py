@@ -143,6 +143,45 @@ def maneuvers_cmd() -> None:
         typer.echo(f"{name}\t{describe(name)}")
 
 
+@app.command("methods")
+def methods_cmd(
+    stage: Annotated[str | None, typer.Argument(help="force | normal | velocity | fusion "
+                                                "(default: every stage).")] = None,
+) -> None:
+    """List the registered estimation methods: stage, name, what it does, its paper equations
+    and the [pipeline.<table>] TOML tables that set its parameters; the default is starred."""
+    from vestim.estimators import registry
+
+    try:
+        stages = registry.STAGES if stage is None else (registry.lookup_stage(stage),)
+        for st in stages:
+            for m in registry.methods(st):
+                cite = m.cite or "ours"
+                tables = ", ".join(f"[pipeline.{t}]" for t in m.tables) or "-"
+                typer.echo(f"{st}\t{m.name}{'*' if m.default else ''}\t{m.summary}\t{cite}\t"
+                           f"{tables}")
+    except VestimError as exc:
+        raise _fail(exc) from None
+
+
+@app.command("config")
+def config_cmd(
+    config: Annotated[Path | None, typer.Argument(help="A TOML file with a [pipeline] table to "
+                                                  "check and print in full (default: the "
+                                                  "defaults).")] = None,
+) -> None:
+    """Print a pipeline configuration as TOML, every parameter written out: the defaults, or
+    CONFIG checked and completed with them. Edit the output and pass it to
+    `vestim estimate --config`."""
+    from vestim.pipeline import PipelineConfig
+
+    try:
+        cfg = PipelineConfig() if config is None else PipelineConfig.from_toml(config)
+    except (VestimError, OSError) as exc:
+        raise _fail(exc) from None
+    typer.echo(cfg.to_toml(), nl=False)
+
+
 @app.command("simulate")
 def simulate_cmd(
     name: Annotated[str, typer.Argument(help="Maneuver name (see `vestim maneuvers`).")],
@@ -180,18 +219,20 @@ def estimate_cmd(
     log_path: Annotated[Path, typer.Argument(metavar="LOG", help="Drive log (.csv or .parquet).")],
     out: Annotated[Path, typer.Option("--out", help="Output log of estimates (.csv or .parquet).")],
     vehicle: VehicleOpt = "hashemi_suv",
-    velocity: Annotated[str | None, typer.Option(help="Velocity stage: fused (default) | reference | "
-                                          "kinematic | kf | ukf | lpv.")] = None,
-    fusion: Annotated[str | None, typer.Option(help="Corner-to-CG fusion: axle (default) | "
-                                               "adaptive | opinion (writes confidence_*).")] = None,
-    force: Annotated[str | None, typer.Option(help="Longitudinal force: ukf (default) | ukf_rw | "
-                                              "pid | uio | naive.")] = None,
-    normal: Annotated[str | None, typer.Option(help="Load transfer: static (default) | "
-                                               "dynamic.")] = None,
+    velocity: Annotated[str | None, typer.Option(help="Velocity stage (default fused); `vestim "
+                                                 "methods velocity` lists the choices.")] = None,
+    fusion: Annotated[str | None, typer.Option(help="Corner-to-CG fusion (default axle); `vestim "
+                                               "methods fusion` lists the choices.")] = None,
+    force: Annotated[str | None, typer.Option(help="Longitudinal force (default ukf); `vestim "
+                                              "methods force` lists the choices.")] = None,
+    normal: Annotated[str | None, typer.Option(help="Load transfer (default static); `vestim "
+                                               "methods normal` lists the choices.")] = None,
     gains: Annotated[Path | None, typer.Option(help="Gains file of `vestim design lpv` for "
                                                "--velocity lpv.")] = None,
-    config: Annotated[Path | None, typer.Option(help="TOML file with a [pipeline] table "
-                                                "(overrides the stage flags).")] = None,
+    config: Annotated[Path | None, typer.Option(help="TOML file with a [pipeline] table (methods) "
+                                                "and [pipeline.<table>] parameter tables "
+                                                "(docs/configuration.md); the stage flags "
+                                                "override its methods.")] = None,
     method: Annotated[str, typer.Option(help="pipeline (forces and velocities) | stiffness-pf "
                                         "(002 Algorithm 1).")] = "pipeline",
     particles: Annotated[int, typer.Option(help="Particles of stiffness-pf.")] = 500,
@@ -209,6 +250,7 @@ def estimate_cmd(
         return
     if method != "pipeline":
         raise _fail(ValueError(f"method {method!r}: use pipeline or stiffness-pf"))
+    import dataclasses
     import itertools
     import json
 
@@ -224,8 +266,10 @@ def estimate_cmd(
         stages: dict[str, Any] = {k: v for k, v in (("force", force), ("normal", normal),
                                                     ("velocity", velocity), ("fusion", fusion))
                                   if v is not None}
-        cfg = (PipelineConfig.from_toml(config) if config is not None
-               else PipelineConfig(**stages, gains=str(gains) if gains else None))
+        if gains is not None:
+            stages["gains"] = str(gains)
+        cfg = (dataclasses.replace(PipelineConfig.from_toml(config), **stages)
+               if config is not None else PipelineConfig(**stages))
         radius = veh.body.wheel_radius
         pieces: Iterator[pd.DataFrame]
         if map_path is None and log_path.suffix.lower() in (".parquet", ".pq"):

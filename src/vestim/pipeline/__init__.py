@@ -48,7 +48,8 @@ import pandas as pd
 
 from vestim.constants import CORNERS, G
 from vestim.errors import LogFormatError
-from vestim.estimators.force import ForceConfig, ForceEstimator
+from vestim.estimators import registry
+from vestim.estimators.force import ForceEstimator
 from vestim.estimators.force.estimator import (
     WHEEL_OUTPUTS,
     ColumnGroup,
@@ -85,6 +86,8 @@ from vestim.estimators.validity import output_names as validity_names
 from vestim.estimators.validity import validity, validity_params
 from vestim.estimators.velocity.corner import CornerVelocityEstimator, CornerVelocityInput
 from vestim.estimators.velocity.kinematic import KinematicIntegrator
+from vestim.estimators.velocity.lpv_observer import LPVParams
+from vestim.estimators.velocity.lugre_kf import KFParams
 from vestim.estimators.velocity.reference import (
     ReferenceFilter,
     axle_slip_angles,
@@ -158,15 +161,15 @@ class Pipeline:
         self._friction_prm = friction_params(self.config.friction)
         self._friction_kx = corner_kx(vehicle, self.config.friction)
         self._friction_state = np.full(4, np.nan)
-        self.force = ForceEstimator(vehicle, ForceConfig(longitudinal=self.config.force,
-                                                         normal=self.config.normal))
+        self.force = ForceEstimator(vehicle, self.config.force_config())
         self.reference = ReferenceFilter(b.wheel_radius, b.lf, b.lr, self._xw, self._yw,
                                          self.config.reference)
         self.kinematic = KinematicIntegrator(b.wheel_radius)
         method = self.config.velocity
         corner_method = CORNER_METHODS.get(method, "lugre_kf" if method == "fused" else None)
-        params = (_lpv_params_from_gains(self.config.gains)
-                  if corner_method == "lpv" and self.config.gains else None)
+        params: KFParams | LPVParams | None = self.config.corner
+        if corner_method == "lpv":
+            params = _lpv_params_from_gains(self.config.gains) if self.config.gains else None
         self.corner = (CornerVelocityEstimator(vehicle, corner_method, params)
                        if corner_method is not None else None)
         # The fused filter: a second reference filter that also takes the corner estimates.
@@ -287,7 +290,7 @@ class Pipeline:
     def _advance(self, u: Any) -> dict[str, np.ndarray]:
         method = self.config.velocity
         wheels = u.omega_measured
-        if not wheels and method not in ("fused", "reference"):
+        if not wheels and registry.lookup("velocity", method).needs_wheel_speeds:
             raise PipelineConfigError(
                 f"velocity method {method!r} needs the wheel speeds omega_fl … omega_rr, which "
                 "the log does not have: use velocity 'reference' or 'fused' (the default)")

@@ -38,9 +38,18 @@ from vestim.estimators.fusion.opinion import (
     solve_confidences,
     steady_state_opinions,
 )
+from vestim.estimators.registry import register
 
 FUSION_METHODS: tuple[str, str, str] = ("axle", "adaptive", "opinion")
 """Names accepted by :func:`fuse`."""
+
+register("fusion", "axle", "fixed axle weights η1 = η2 = 0.5", default=True,
+         cite="000 Sec. III, 004 Sec. III", tables=("fusion_params",), needs_wheel_speeds=False)
+register("fusion", "adaptive", "slip-adaptive axle weights", cite="001 eq. (34)–(35)",
+         tables=("fusion_params",), needs_wheel_speeds=False)
+register("fusion", "opinion", "opinion-dynamics consensus with per-sample confidence "
+         "optimisation (writes confidence_*)", cite="003 eq. (5)–(13), Alg. 2",
+         tables=("fusion_params",), needs_wheel_speeds=False)
 
 
 @dataclass(frozen=True)
