@@ -137,3 +137,17 @@ def test_cli_config_completes_a_file_with_the_defaults(tmp_path):
     f.write_text('[pipeline]\nvelocity = "kinematic"\n')
     res = CliRunner().invoke(app, ["config", str(f)])
     assert res.exit_code == 0 and 'velocity = "kinematic"' in res.output
+
+
+def test_docs_configuration_names_every_table_and_method():
+    """docs/configuration.md is the user's reference: every parameter table and every
+    registered method must be in it."""
+    from pathlib import Path
+
+    text = (Path(__file__).resolve().parents[2] / "docs" / "configuration.md").read_text(
+        encoding="utf-8")
+    for table, cls in PARAMETER_TABLES.items():
+        assert f"`[pipeline.{table}]`" in text and cls.__name__ in text, table
+    for stage in registry.STAGES:
+        for m in registry.methods(stage):
+            assert f"`{m.name}`" in text, (stage, m.name)
