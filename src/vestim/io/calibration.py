@@ -179,12 +179,14 @@ def parse_calibration(table: Any) -> Calibration:
 
 
 def toml_value(v: Any) -> str:
-    """One TOML value (bool, number with nan, string, list) as text; the writer of every
-    vehicle-file table vestim writes."""
+    """One TOML value (bool, integer, float with nan and inf, string, list or tuple) as text;
+    the writer of every TOML table vestim writes (vehicle files, pipeline configs)."""
     if isinstance(v, bool):
         return "true" if v else "false"
-    if isinstance(v, float | int):
-        return "nan" if math.isnan(v) else repr(float(v))
+    if isinstance(v, int | np.integer):
+        return str(int(v))
+    if isinstance(v, float | np.floating):
+        return "nan" if math.isnan(v) else repr(float(v))  # a NumPy float's repr is not TOML
     if isinstance(v, str):
         return '"' + v.replace("\\", "\\\\").replace('"', '\\"').replace("\n", " ") + '"'
     if isinstance(v, list | tuple):

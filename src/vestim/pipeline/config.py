@@ -6,8 +6,6 @@
 
 from __future__ import annotations
 
-import json
-import math
 import tomllib
 from dataclasses import dataclass, field, fields, is_dataclass, replace
 from pathlib import Path
@@ -26,6 +24,7 @@ from vestim.estimators.velocity.lpv_observer import GainSchedule as LPVGains
 from vestim.estimators.velocity.lpv_observer import LPVParams
 from vestim.estimators.velocity.lugre_kf import KFParams
 from vestim.estimators.velocity.reference import RadiusParams, ReferenceParams, StiffnessParams
+from vestim.io.calibration import toml_value
 
 VELOCITY_METHODS: tuple[str, ...] = registry.names("velocity")
 """The registered velocity methods, the default first (:mod:`vestim.estimators.registry`)."""
@@ -157,24 +156,10 @@ class PipelineConfig:
             if f.name in PARAMETER_TABLES:
                 tables.append((f"pipeline.{f.name}", value))
             elif value is not None:
-                lines.append(f"{f.name} = {_toml_value(value)}")
+                lines.append(f"{f.name} = {toml_value(value)}")
         for where, value in tables:
             lines += _toml_table(where, value)
         return "\n".join(lines) + "\n"
-
-
-def _toml_value(value: Any) -> str:
-    if isinstance(value, bool):
-        return "true" if value else "false"
-    if isinstance(value, float):
-        return ("inf" if value > 0 else "-inf") if math.isinf(value) else repr(value)
-    if isinstance(value, int):
-        return str(value)
-    if isinstance(value, str):
-        return json.dumps(value, ensure_ascii=False)  # a TOML basic string
-    if isinstance(value, tuple):
-        return "[" + ", ".join(_toml_value(v) for v in value) + "]"
-    raise TypeError(f"{value!r}: no TOML form")
 
 
 def _toml_table(where: str, obj: Any) -> list[str]:
@@ -188,7 +173,7 @@ def _toml_table(where: str, obj: Any) -> list[str]:
         if is_dataclass(value):
             nested.append((f"{where}.{f.name}", value))
         elif value is not None:  # None: the field's default, which TOML cannot spell
-            lines.append(f"{f.name} = {_toml_value(value)}")
+            lines.append(f"{f.name} = {toml_value(value)}")
     for w, value in nested:
         lines += _toml_table(w, value)
     return lines
