@@ -24,6 +24,9 @@ is no bias estimation (002 Sec. VI-A sets the bias to zero).
 EKF (002 Sec. V, VII-A). The augmented state [v_x, v_y, ψ̇, ΔC^x, ΔC_f^y, ΔC_r^y,
 b_x, b_y, b_ψ] with random-walk stiffness and bias, the same measurements and
 noise as Algorithm 1, Joseph-form update and projection of ΔC on the bounds.
+
+Both Kalman measurement updates are :func:`vestim.filters.kalman.kalman_update`
+(Joseph form, Cholesky solve of S); the RLS keeps its own gain with forgetting.
 """
 
 from __future__ import annotations
@@ -64,6 +67,7 @@ from vestim.estimators.stiffness.model import (
     slips,
     terms,
 )
+from vestim.filters.kalman import kalman_update
 
 _JIT: dict[str, Any] = {"cache": True, "error_model": "numpy"}
 
@@ -154,6 +158,15 @@ def ekf_kernel(y: np.ndarray, u: np.ndarray, active: np.ndarray, p: np.ndarray,
     fmat = np.eye(n)
     hmat = np.zeros((3, n))
     eye = np.eye(n)
+    rmat = np.zeros((3, 3))
+    for j in range(3):
+        rmat[j, j] = r_diag[j]
+    innov = np.empty(3)
+    ph = np.empty((n, 3))
+    smat = np.empty((3, 3))
+    lmat = np.empty((3, 3))
+    gain = np.empty((n, 3))
+    mwork = np.empty((n, n))
     for k in range(y.shape[0]):
         uk = u[k]
         xs = xa[0:3].copy()
@@ -172,20 +185,10 @@ def ekf_kernel(y: np.ndarray, u: np.ndarray, active: np.ndarray, p: np.ndarray,
         hmat[0, 6] = 1.0
         hmat[1, 7] = 1.0
         hmat[2, 8] = 1.0
-        innov = np.empty(3)
         innov[0] = y[k, M_AX] - pred[3] - xa[6]
         innov[1] = y[k, M_AY] - pred[4] - xa[7]
         innov[2] = y[k, M_YAW_RATE] - xa[YAW_RATE] - xa[8]
-        ph = pa @ hmat.T
-        smat = hmat @ ph
-        for i in range(3):
-            smat[i, i] += r_diag[i]
-        gain = np.linalg.solve(smat, ph.T).T
-        xa += gain @ innov
-        ikh = eye - gain @ hmat
-        pa[:, :] = ikh @ pa @ ikh.T
-        kr = gain * r_diag
-        pa[:, :] += kr @ gain.T
+        kalman_update(xa, pa, hmat, rmat, innov, ph, smat, lmat, gain, mwork)
         for j in range(3):
             xa[3 + j] = min(max(xa[3 + j], lo[j]), hi[j])
         for i in range(n):
@@ -248,6 +251,18 @@ def rls_kf_kernel(y: np.ndarray, u: np.ndarray, vx: np.ndarray, active: np.ndarr
     pred = np.empty(5)
     jac = np.empty((5, 3))
     lp = np.zeros(12)
+    # lateral Kalman filter: H = [[∂a_y/∂v_y, ∂a_y/∂ψ̇], [0, 1]], R = diag(r_ay, r_ψ̇)
+    hkf = np.zeros((2, 2))
+    hkf[1, 1] = 1.0
+    rkf = np.zeros((2, 2))
+    rkf[0, 0] = r_diag[M_AY]
+    rkf[1, 1] = r_diag[M_YAW_RATE]
+    ekf = np.empty(2)
+    phkf = np.empty((2, 2))
+    skf = np.empty((2, 2))
+    lkf = np.empty((2, 2))
+    kkf = np.empty((2, 2))
+    mkf = np.empty((2, 2))
     ts0 = u[0, U_DT]
     a_lp = 1.0 - math.exp(-2.0 * math.pi * cutoff * ts0)
     rho = 1.0 - a_lp
@@ -263,48 +278,19 @@ def rls_kf_kernel(y: np.ndarray, u: np.ndarray, vx: np.ndarray, active: np.ndarr
         ts = uk[U_DT]
         sdl = math.sin(delta)
         cdl = math.cos(delta)
-        # ---- Kalman update of [v_y, ψ̇] with [a_y, ψ̇]
+        # ---- Kalman update of [v_y, ψ̇] with [a_y, ψ̇] (Joseph form, vestim.filters.kalman)
         xs[VX] = vx[k]
         xs[VY] = z[0]
         xs[YAW_RATE] = z[1]
         _predict_and_measure(xs, theta, uk, p, pred)
         _state_jacobian(xs, theta, uk, p, jac)
-        h00 = jac[4, VY]
-        h01 = jac[4, YAW_RATE]
-        # H = [[h00, h01], [0, 1]]
-        p00 = p_kf[0, 0]
-        p01 = p_kf[0, 1]
-        p11 = p_kf[1, 1]
-        ph00 = p00 * h00 + p01 * h01
-        ph10 = p01 * h00 + p11 * h01
-        s00 = h00 * ph00 + h01 * ph10 + r_diag[M_AY]
-        s01 = h00 * p01 + h01 * p11
-        s11 = p11 + r_diag[M_YAW_RATE]
-        det = s00 * s11 - s01 * s01
-        i00 = s11 / det
-        i01 = -s01 / det
-        i11 = s00 / det
-        # K = P Hᵀ S⁻¹ with P Hᵀ = [[ph00, p01], [ph10, p11]]
-        k00 = ph00 * i00 + p01 * i01
-        k01 = ph00 * i01 + p01 * i11
-        k10 = ph10 * i00 + p11 * i01
-        k11 = ph10 * i01 + p11 * i11
-        e0 = y[k, M_AY] - pred[4]
-        e1 = y[k, M_YAW_RATE] - z[1]
-        z[0] += k00 * e0 + k01 * e1
-        z[1] += k10 * e0 + k11 * e1
-        # P ← (I − K H) P
-        a00 = 1.0 - k00 * h00
-        a01 = -k00 * h01 - k01
-        a10 = -k10 * h00
-        a11 = 1.0 - k10 * h01 - k11
-        n00 = a00 * p00 + a01 * p01
-        n01 = a00 * p01 + a01 * p11
-        n11 = a10 * p01 + a11 * p11
-        p_kf[0, 0] = n00
-        p_kf[0, 1] = n01
-        p_kf[1, 0] = n01
-        p_kf[1, 1] = n11
+        hkf[0, 0] = jac[4, VY]
+        hkf[0, 1] = jac[4, YAW_RATE]
+        ekf[0] = y[k, M_AY] - pred[4]
+        ekf[1] = y[k, M_YAW_RATE] - z[1]
+        kalman_update(z, p_kf, hkf, rkf, ekf, phkf, skf, lkf, kkf, mkf)
+        n00 = p_kf[0, 0]
+        n11 = p_kf[1, 1]
         x_out[k, VX] = vx[k]
         x_out[k, VY] = z[0]
         x_out[k, YAW_RATE] = z[1]

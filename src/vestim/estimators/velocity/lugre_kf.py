@@ -21,8 +21,9 @@ B_k = ∫_0^h e^{Aτ}B dτ, in closed form (:func:`~.corner_discrete.kf_transiti
 Filters:
 
 * ``kf`` — 000 eq. (21)–(22) in filter form: predict x⁻ = A_k x + B_k u,
-  P⁻ = A_k P A_kᵀ + Q̄, then update with μ_x,k (Joseph form, so P stays symmetric
-  positive definite). 000's one-step predictor (21) is the same recursion with
+  P⁻ = A_k P A_kᵀ + Q̄, then update with μ_x,k (Joseph form,
+  :func:`vestim.filters.kalman.kalman_update_scalar`, so P stays symmetric positive
+  definite). 000's one-step predictor (21) is the same recursion with
   the update and the prediction fused; the filter form is used so that the
   estimate at sample k already contains μ_x,k.
 * ``ukf`` — 003 Algorithm 1 with the papers' sigma-point scaling (2N + 1 = 7
@@ -70,6 +71,7 @@ from vestim.estimators.velocity.corner_slip import (
     is_high_slip,
     slip_ratio_estimate,
 )
+from vestim.filters.kalman import kalman_update_scalar
 from vestim.filters.ukf import sigma_points
 from vestim.models.lpv import KalmanState
 
@@ -139,12 +141,13 @@ class KFParams:
 
 @njit(**_JIT)
 def _kf_step(x: np.ndarray, P: np.ndarray, c: int, Ak: np.ndarray, Bk: np.ndarray, u: float,
-             q: np.ndarray, r: float, y: float, c0: float, c1: float, c2: float,
-             T: np.ndarray) -> None:
+             q: np.ndarray, r: float, y: float, h: np.ndarray, T: np.ndarray, ph: np.ndarray,
+             kg: np.ndarray, M: np.ndarray) -> None:
     """One predict/update of the linear KF (000 eq. (21)–(22), filter form), in place on x[c], P[c].
 
-    Uses the structure of A_k (:func:`~.corner_discrete.kf_transition`): A_k[0, 2] = 0
-    and row 1 = [0, 1, 0] (v_rx is only driven by the input).
+    h = C = [σ0, σ2, σ1] is the output row; T, ph, kg, M are scratch. Uses the structure
+    of A_k (:func:`~.corner_discrete.kf_transition`): A_k[0, 2] = 0 and row 1 = [0, 1, 0]
+    (v_rx is only driven by the input).
     """
     a00, a01, a20, a21, a22 = Ak[0, 0], Ak[0, 1], Ak[2, 0], Ak[2, 1], Ak[2, 2]
     xp0 = a00 * x[c, 0] + a01 * x[c, 1] + Bk[0] * u
@@ -161,71 +164,38 @@ def _kf_step(x: np.ndarray, P: np.ndarray, c: int, Ak: np.ndarray, Bk: np.ndarra
     s11 = T[1, 1] + q[1]
     s12 = T[1, 0] * a20 + T[1, 1] * a21 + T[1, 2] * a22
     s22 = T[2, 0] * a20 + T[2, 1] * a21 + T[2, 2] * a22 + q[2]
+    x[c, 0] = xp0
+    x[c, 1] = xp1
+    x[c, 2] = xp2
+    P[c, 0, 0] = s00
+    P[c, 0, 1] = P[c, 1, 0] = s01
+    P[c, 0, 2] = P[c, 2, 0] = s02
+    P[c, 1, 1] = s11
+    P[c, 1, 2] = P[c, 2, 1] = s12
+    P[c, 2, 2] = s22
     if math.isnan(y):
-        x[c, 0] = xp0
-        x[c, 1] = xp1
-        x[c, 2] = xp2
-        P[c, 0, 0] = s00
-        P[c, 0, 1] = P[c, 1, 0] = s01
-        P[c, 0, 2] = P[c, 2, 0] = s02
-        P[c, 1, 1] = s11
-        P[c, 1, 2] = P[c, 2, 1] = s12
-        P[c, 2, 2] = s22
         return
-    # gain K = P⁻Cᵀ / (C P⁻ Cᵀ + R), C = [σ0, σ2, σ1]
-    pc0 = s00 * c0 + s01 * c1 + s02 * c2
-    pc1 = s01 * c0 + s11 * c1 + s12 * c2
-    pc2 = s02 * c0 + s12 * c1 + s22 * c2
-    sy = c0 * pc0 + c1 * pc1 + c2 * pc2 + r
-    k0 = pc0 / sy
-    k1 = pc1 / sy
-    k2 = pc2 / sy
-    innov = y - (c0 * xp0 + c1 * xp1 + c2 * xp2)
-    x[c, 0] = xp0 + k0 * innov
-    x[c, 1] = xp1 + k1 * innov
-    x[c, 2] = xp2 + k2 * innov
-    # Joseph form P = (I − KC) P⁻ (I − KC)ᵀ + K R Kᵀ: symmetric positive definite by
+    # Update with μ_x = C x, C = [σ0, σ2, σ1], in the Joseph form of
+    # :func:`~vestim.filters.kalman.kalman_update_scalar`: symmetric positive definite by
     # construction even when round-off makes P⁻ − K S Kᵀ lose definiteness (σ0 ≈ 600
-    # against σ2 ≈ 0.002 makes C badly scaled). With G = I − KC and P⁻ symmetric:
-    # G P⁻ = P⁻ − K (C P⁻) = P⁻ − K pcᵀ.
-    g00 = 1.0 - k0 * c0
-    g01 = -k0 * c1
-    g02 = -k0 * c2
-    g10 = -k1 * c0
-    g11 = 1.0 - k1 * c1
-    g12 = -k1 * c2
-    g20 = -k2 * c0
-    g21 = -k2 * c1
-    g22 = 1.0 - k2 * c2
-    h00 = s00 - k0 * pc0
-    h01 = s01 - k0 * pc1
-    h02 = s02 - k0 * pc2
-    h10 = s01 - k1 * pc0
-    h11 = s11 - k1 * pc1
-    h12 = s12 - k1 * pc2
-    h20 = s02 - k2 * pc0
-    h21 = s12 - k2 * pc1
-    h22 = s22 - k2 * pc2
-    P[c, 0, 0] = h00 * g00 + h01 * g01 + h02 * g02 + k0 * k0 * r
-    P[c, 0, 1] = P[c, 1, 0] = h00 * g10 + h01 * g11 + h02 * g12 + k0 * k1 * r
-    P[c, 0, 2] = P[c, 2, 0] = h00 * g20 + h01 * g21 + h02 * g22 + k0 * k2 * r
-    P[c, 1, 1] = h10 * g10 + h11 * g11 + h12 * g12 + k1 * k1 * r
-    P[c, 1, 2] = P[c, 2, 1] = h10 * g20 + h11 * g21 + h12 * g22 + k1 * k2 * r
-    P[c, 2, 2] = h20 * g20 + h21 * g21 + h22 * g22 + k2 * k2 * r
+    # against σ2 ≈ 0.002 makes C badly scaled).
+    innov = y - (h[0] * xp0 + h[1] * xp1 + h[2] * xp2)
+    kalman_update_scalar(x[c], P[c], h, r, innov, ph, kg, M)
 
 
 @njit(**_JIT)
 def _ukf_step(x: np.ndarray, P: np.ndarray, c: int, Ak: np.ndarray, Bk: np.ndarray, u: float,
-              q: np.ndarray, r: float, y: float, c0: float, c1: float, c2: float,
-              wm: np.ndarray, wc: np.ndarray, tau: float, pts: np.ndarray, L: np.ndarray,
-              xm: np.ndarray, Pm: np.ndarray) -> None:
-    """One step of 003 Algorithm 1, in place on x[c], P[c] (xm, Pm: scratch copies).
+              q: np.ndarray, r: float, y: float, h: np.ndarray, wm: np.ndarray, wc: np.ndarray,
+              tau: float, pts: np.ndarray, L: np.ndarray, xm: np.ndarray, Pm: np.ndarray,
+              kg: np.ndarray) -> None:
+    """One step of 003 Algorithm 1, in place on x[c], P[c] (xm, Pm, kg: scratch).
 
     Prediction through the sigma points of (x, P) (papers' scaling). The output
     μ = C x is linear, so the sigma-point sums of the update (P_ŷŷ, P_x̂ŷ of
     Algorithm 1, over points redrawn from (x̂_m, P_m + Q̄)) equal C P_m Cᵀ + R̄ and
-    P_m Cᵀ exactly and are evaluated in that closed form (as the force stage does
-    for its linear measurement); this saves a second factorisation per step.
+    P_m Cᵀ exactly: the update is the linear one of
+    :func:`~vestim.filters.kalman.kalman_update_scalar` (Joseph form, as ``_kf_step``),
+    which saves a second factorisation per step.
     """
     npts = pts.shape[0]
     for i in range(NX):
@@ -282,35 +252,21 @@ def _ukf_step(x: np.ndarray, P: np.ndarray, c: int, Ak: np.ndarray, Bk: np.ndarr
     s00 += q[0]
     s11 += q[1]
     s22 += q[2]
+    x[c, 0] = m0
+    x[c, 1] = m1
+    x[c, 2] = m2
+    P[c, 0, 0] = s00
+    P[c, 0, 1] = P[c, 1, 0] = s01
+    P[c, 0, 2] = P[c, 2, 0] = s02
+    P[c, 1, 1] = s11
+    P[c, 1, 2] = P[c, 2, 1] = s12
+    P[c, 2, 2] = s22
     if math.isnan(y):
-        x[c, 0] = m0
-        x[c, 1] = m1
-        x[c, 2] = m2
-        P[c, 0, 0] = s00
-        P[c, 0, 1] = P[c, 1, 0] = s01
-        P[c, 0, 2] = P[c, 2, 0] = s02
-        P[c, 1, 1] = s11
-        P[c, 1, 2] = P[c, 2, 1] = s12
-        P[c, 2, 2] = s22
         return
-    pxy0 = s00 * c0 + s01 * c1 + s02 * c2
-    pxy1 = s01 * c0 + s11 * c1 + s12 * c2
-    pxy2 = s02 * c0 + s12 * c1 + s22 * c2
-    pyy = c0 * pxy0 + c1 * pxy1 + c2 * pxy2 + r
-    k0 = pxy0 / pyy
-    k1 = pxy1 / pyy
-    k2 = pxy2 / pyy
-    innov = y - (c0 * m0 + c1 * m1 + c2 * m2)
-    x[c, 0] = m0 + k0 * innov
-    x[c, 1] = m1 + k1 * innov
-    x[c, 2] = m2 + k2 * innov
-    # P = P_m − K P_ŷŷ Kᵀ (Algorithm 1)
-    P[c, 0, 0] = s00 - k0 * k0 * pyy
-    P[c, 0, 1] = P[c, 1, 0] = s01 - k0 * k1 * pyy
-    P[c, 0, 2] = P[c, 2, 0] = s02 - k0 * k2 * pyy
-    P[c, 1, 1] = s11 - k1 * k1 * pyy
-    P[c, 1, 2] = P[c, 2, 1] = s12 - k1 * k2 * pyy
-    P[c, 2, 2] = s22 - k2 * k2 * pyy
+    # P_x̂ŷ = P_m Cᵀ, P_ŷŷ = C P_m Cᵀ + R̄: the linear update, in the same Joseph form as
+    # the KF (Algorithm 1's P_m − K P_ŷŷ Kᵀ is equal in exact arithmetic).
+    innov = y - (h[0] * m0 + h[1] * m1 + h[2] * m2)
+    kalman_update_scalar(x[c], P[c], h, r, innov, xm, kg, Pm)
 
 
 @njit(**_JIT)
@@ -345,6 +301,10 @@ def lugre_kf_kernel(
     xp = np.empty(3)
     Pp = np.empty((3, 3))
     T = np.empty((3, 3))
+    M = np.empty((3, 3))
+    hrow = np.array([sigma0, sigma2, sigma1])
+    ph = np.empty(NX)
+    kg = np.empty(NX)
     pts = np.empty((2 * NX + 1, NX))
     L = np.empty((NX, NX))
     wdh = np.empty(4, dtype=np.bool_)
@@ -409,10 +369,10 @@ def lugre_kf_kernel(
                 rk = r_high if high else r
                 y_use = math.nan if math.isinf(rk) else yk  # R̄ = ∞: prediction only
                 if use_ukf:
-                    _ukf_step(x, P, c, Ak, Bk, u, qk, rk, y_use, sigma0, sigma2, sigma1, wm, wc,
-                              tau, pts, L, xp, Pp)
+                    _ukf_step(x, P, c, Ak, Bk, u, qk, rk, y_use, hrow, wm, wc, tau, pts, L, xp,
+                              Pp, kg)
                 else:
-                    _kf_step(x, P, c, Ak, Bk, u, qk, rk, y_use, sigma0, sigma2, sigma1, T)
+                    _kf_step(x, P, c, Ak, Bk, u, qk, rk, y_use, hrow, T, ph, kg, M)
             out_vxt[k, c] = radius * wk - x[c, VR]
             out_sigma[k, c] = math.sqrt(max(P[c, VR, VR], 0.0))
             out_high[k, c] = high

@@ -1,0 +1,194 @@
+"""Kalman measurement updates for compiled filter loops: one form for every linear measurement.
+
+Two updates, both in place on caller-owned arrays and allocation-free (scratch
+arrays are passed in, as in :mod:`vestim.filters.linalg`):
+
+* :func:`kalman_update_scalar` and :func:`kalman_update` — a linear (or affine)
+  measurement z = H x + h₀ + v, var(v) = R, with the innovation ν = z − H x̂ − h₀
+  given by the caller: S = H P Hᵀ + R, K = P Hᵀ S⁻¹, x̂ ← x̂ + K ν and the
+  **Joseph form**
+
+      P ← (I − K H) P (I − K H)ᵀ + K R Kᵀ.
+
+  For the optimal gain this equals P − K S Kᵀ = (I − K H) P in exact arithmetic;
+  in floating point only the Joseph form is a sum of a congruence of P and a
+  positive semi-definite term, so P stays symmetric positive semi-definite for
+  any gain and the error it picks up from a rounded K is second order in that
+  error (Bucy & Joseph 1968; Grewal & Andrews, *Kalman Filtering*).
+  The estimators' measurement rows are badly scaled (the LuGre output row
+  [σ0, σ2, σ1] ≈ [600, 0.002, 0.8]; force sums of 10⁴ N against a yaw rate of
+  10⁻² rad/s), which is where P − K S Kᵀ loses definiteness. It costs a few
+  dozen flops more per update on these small states (n ≤ 9). The LuGre KF and
+  UKF corner filters, the stiffness EKF and the RLS + KF's Kalman filter use it,
+  the UKF included: its measurement is linear in the state, so the sigma-point
+  sums P_xy, P_yy equal P̄ Hᵀ and H P̄ Hᵀ + R exactly and the update is a
+  linear one. Not yet the force stage's UKFs (longitudinal and lateral, which
+  keep their own updates): on these kernels the compiled one-sample step of
+  :mod:`vestim.pipeline.online` then differed from the batch run by 1e-16
+  relative (the same code optimised differently once inlined there), and the
+  two must agree bit for bit. The scalar kernel
+  is the vector one for m = 1 without the Cholesky factorisation (S is a number).
+
+* :func:`ukf_update` — the unscented update from sigma-point statistics (000
+  eq. (11)–(12), 004 eq. (5)): K = P_xy P_yy⁻¹ by a Cholesky solve
+  (:func:`~vestim.filters.linalg.chol_solve`), x̂ ← x̂ + K ν, P ← P − K P_xyᵀ
+  (= P − K P_yy Kᵀ), symmetrised. Without H the Joseph form cannot be written;
+  it is for filters that evaluate the measurement at the sigma points (the
+  papers' form ``ukf_rw`` of :mod:`vestim.estimators.force.longitudinal`, once
+  the force UKFs move here).
+
+Matrices are a few rows at most; plain loops beat LAPACK calls here by an order
+of magnitude. Nothing here knows about vehicles.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+from numba import njit
+
+from vestim.filters.linalg import chol_solve, cholesky
+
+_JIT: dict[str, Any] = {"cache": True, "error_model": "numpy"}
+
+
+@njit(**_JIT)
+def _joseph(P: np.ndarray, K: np.ndarray, H: np.ndarray, R: np.ndarray, PHt: np.ndarray,
+            M: np.ndarray) -> None:
+    """P ← (I − K H) P (I − K H)ᵀ + K R Kᵀ given P Hᵀ (n, m); M (n, n) scratch.
+
+    (I − K H) P = P − K (P Hᵀ)ᵀ for symmetric P; the upper triangle is evaluated and
+    mirrored, so P leaves exactly symmetric.
+    """
+    n = P.shape[0]
+    m = H.shape[0]
+    for i in range(n):
+        for j in range(n):
+            acc = P[i, j]
+            for a in range(m):
+                acc -= K[i, a] * PHt[j, a]
+            M[i, j] = acc
+    for i in range(n):
+        for j in range(i, n):
+            acc = 0.0
+            for q in range(n):
+                g = 1.0 if j == q else 0.0
+                for a in range(m):
+                    g -= K[j, a] * H[a, q]
+                acc += M[i, q] * g
+            for a in range(m):
+                for b in range(m):
+                    acc += K[i, a] * K[j, b] * R[a, b]
+            P[i, j] = acc
+            P[j, i] = acc
+
+
+@njit(**_JIT)
+def kalman_update_scalar(x: np.ndarray, P: np.ndarray, h: np.ndarray, r: float, nu: float,
+                         ph: np.ndarray, k: np.ndarray, M: np.ndarray) -> float:
+    """Joseph-form update of (x (n,), P (n, n)) by one scalar measurement with row h (n,).
+
+    z = hᵀx + h₀ + v, var(v) = r > 0, innovation ν = z − hᵀx̂ − h₀ (the caller's).
+    S = hᵀ P h + r, k = P h / S, x̂ ← x̂ + k ν, P ← (I − k hᵀ) P (I − k hᵀ)ᵀ + r k kᵀ.
+    Scratch: ph, k (n,) (k holds the gain afterwards), M (n, n). Returns S.
+    P must be symmetric; it leaves exactly symmetric. A measurement of one state i
+    (h the i-th unit vector) is the special case S = P_ii + r, k = P[:, i]/S.
+    """
+    n = x.shape[0]
+    for i in range(n):
+        acc = 0.0
+        for j in range(n):
+            acc += P[i, j] * h[j]
+        ph[i] = acc
+    s = 0.0
+    for i in range(n):
+        s += h[i] * ph[i]
+    s += r
+    for i in range(n):
+        k[i] = ph[i] / s
+        x[i] += k[i] * nu
+    for i in range(n):
+        for j in range(n):
+            M[i, j] = P[i, j] - k[i] * ph[j]
+    for i in range(n):
+        for j in range(i, n):
+            acc = 0.0
+            for q in range(n):
+                acc += M[i, q] * ((1.0 if j == q else 0.0) - k[j] * h[q])
+            acc += k[i] * k[j] * r
+            P[i, j] = acc
+            P[j, i] = acc
+    return s
+
+
+@njit(**_JIT)
+def kalman_update(x: np.ndarray, P: np.ndarray, H: np.ndarray, R: np.ndarray, nu: np.ndarray,
+                  PHt: np.ndarray, S: np.ndarray, L: np.ndarray, K: np.ndarray,
+                  M: np.ndarray) -> bool:
+    """Joseph-form update of (x (n,), P (n, n)) by m linear measurements H (m, n), R (m, m).
+
+    ν (m,) = z − H x̂ − h₀ (the caller's). S = H P Hᵀ + R, K = P Hᵀ S⁻¹ by a Cholesky
+    solve, x̂ ← x̂ + K ν, P ← (I − K H) P (I − K H)ᵀ + K R Kᵀ. Scratch (left holding the
+    step's quantities, for callers that test innovations against S): PHt (n, m) = P Hᵀ,
+    S (m, m), L (m, m) its Cholesky factor, K (n, m) the gain, M (n, n). Returns False
+    when S needed the Cholesky pivot floor (:func:`~vestim.filters.linalg.cholesky`).
+    """
+    n = x.shape[0]
+    m = H.shape[0]
+    for i in range(n):
+        for a in range(m):
+            acc = 0.0
+            for j in range(n):
+                acc += P[i, j] * H[a, j]
+            PHt[i, a] = acc
+    for a in range(m):
+        for b in range(m):
+            acc = 0.0
+            for j in range(n):
+                acc += H[a, j] * PHt[j, b]
+            S[a, b] = acc + R[a, b]
+    ok = cholesky(S, L)
+    for i in range(n):
+        chol_solve(L, PHt[i], K[i])
+    for i in range(n):
+        acc = x[i]
+        for a in range(m):
+            acc += K[i, a] * nu[a]
+        x[i] = acc
+    _joseph(P, K, H, R, PHt, M)
+    return ok
+
+
+@njit(**_JIT)
+def ukf_update(x: np.ndarray, P: np.ndarray, Pxy: np.ndarray, Pyy: np.ndarray, nu: np.ndarray,
+               L: np.ndarray, K: np.ndarray) -> bool:
+    """Unscented measurement update of (x (n,), P (n, n)) from sigma-point statistics.
+
+    Pxy (n, m) = Σ W^c (χ − x̂)(γ − ŷ)ᵀ, Pyy (m, m) = Σ W^c (γ − ŷ)(γ − ŷ)ᵀ + R,
+    ν (m,) = z − ŷ (000 eq. (11)–(12)). K = Pxy Pyy⁻¹ by a Cholesky solve, x̂ ← x̂ + K ν,
+    P ← P − K Pxyᵀ, symmetrised. Scratch: L (m, m), K (n, m) (the gain afterwards).
+    Returns False when Pyy needed the Cholesky pivot floor.
+    """
+    n = x.shape[0]
+    m = Pyy.shape[0]
+    ok = cholesky(Pyy, L)
+    for i in range(n):
+        chol_solve(L, Pxy[i], K[i])
+    for i in range(n):
+        acc = x[i]
+        for a in range(m):
+            acc += K[i, a] * nu[a]
+        x[i] = acc
+    for i in range(n):
+        for j in range(n):
+            acc = P[i, j]
+            for a in range(m):
+                acc -= K[i, a] * Pxy[j, a]
+            P[i, j] = acc
+    for i in range(n):
+        for j in range(i + 1, n):
+            v = 0.5 * (P[i, j] + P[j, i])
+            P[i, j] = v
+            P[j, i] = v
+    return ok
