@@ -66,6 +66,7 @@ from vestim.io.log import road_wheel_angles
 from vestim.io.vehicle import Vehicle
 from vestim.models import chassis
 from vestim.models.kinematics import level_road_az, road_specific_force
+from vestim.params import check_ranges
 
 TORQUES: tuple[str, ...] = tuple(f"torque_{c}" for c in CORNERS)
 OMEGAS: tuple[str, ...] = tuple(f"omega_{c}" for c in CORNERS)
@@ -128,6 +129,8 @@ class ForceConfig:
                              f"{', '.join(lon.METHODS)}")
         if self.normal not in nrm.MODES:
             raise ValueError(f"normal-load mode {self.normal!r}: use one of {', '.join(nrm.MODES)}")
+        check_ranges(self, "force_params", positive=("roll_tau", "rate_filter_hz", "roll_slide",
+                                                     "roll_gain", "roll_bias_tau", "pitch_gain"))
 
 
 @dataclass

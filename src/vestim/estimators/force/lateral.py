@@ -67,6 +67,7 @@ from numba import njit
 
 from vestim.filters.linalg import cholesky
 from vestim.filters.ukf import sigma_points
+from vestim.params import check_ranges
 
 _JIT: dict[str, Any] = {"cache": True, "error_model": "numpy"}
 
@@ -116,6 +117,12 @@ class LateralParams:
     bias_tau: float = 0.0
     bias_scale: float = 0.1
     split_kinematic: bool = True
+
+    def __post_init__(self) -> None:
+        check_ranges(self, "force_params.lateral", positive=(
+            "q_force", "q_split", "q_yaw", "sigma_ax", "sigma_ay", "sigma_yaw", "sigma_split",
+            "slip_scale", "adapt_tau", "adapt_nu", "adapt_cap", "bias_scale"),
+            nonnegative=("load_exponent", "bias_tau"))
 
 
 def lateral_q(lp: LateralParams, c0: float = 0.0) -> np.ndarray:

@@ -33,6 +33,7 @@ from numba import njit
 
 from vestim.filters.ukf import sigma_points, ukf_weights
 from vestim.io.vehicle import Vehicle
+from vestim.params import check_ranges
 
 _JIT: dict[str, Any] = {"cache": True, "error_model": "numpy"}
 
@@ -107,6 +108,17 @@ class UKFParams:
     innov_torque_share: float = 0.5
     resolve_time: float = 0.2
     q_torque_switched: float = 200.0
+
+    def __post_init__(self) -> None:
+        check_ranges(self, "force_params.ukf", positive=(
+            "r_omega", "r_torque", "q_acc", "q_acc_high", "q_torque", "q_force", "q_force_high",
+            "omega_dot_high", "omega_dot_window", "q_acc_innov", "innov_alpha", "innov_mean",
+            "innov_one", "p0_acc", "p0_force", "noise_gain_min", "sigma_omega_min",
+            "sigma_torque_min", "q_torque_innov", "innov_torque_one", "innov_torque_mean",
+            "resolve_time", "q_torque_switched"), nonnegative=("noise_prior_n",
+                                                              "innov_torque_share"))
+        if not self.innov_alpha <= 1.0 or not self.innov_torque_share <= 1.0:
+            raise ValueError("force_params.ukf innov_alpha and innov_torque_share must be <= 1")
 
 
 @njit(**_JIT)
@@ -487,6 +499,9 @@ class PIDParams:
     eta2: float = 11.4
     eta3: float = 50.6
 
+    def __post_init__(self) -> None:
+        check_ranges(self, "force_params.pid", positive=("eta1", "eta2", "eta3"))
+
 
 @njit(**_JIT)
 def pid_kernel(t: np.ndarray, omega: np.ndarray, torque: np.ndarray, iw: float, radius: float,
@@ -537,6 +552,9 @@ class UIOParams:
 
     kp: float = 42.0
     f0: float = 0.0
+
+    def __post_init__(self) -> None:
+        check_ranges(self, "force_params.uio", positive=("kp",), finite=True)
 
 
 @njit(**_JIT)
