@@ -43,6 +43,7 @@ from dataclasses import fields, replace
 from pathlib import Path
 from typing import Any
 
+import numba
 import numpy as np
 import pandas as pd
 
@@ -64,14 +65,17 @@ from vestim.estimators.friction import (
     corner_kx,
     friction_params,
     friction_potential,
+    new_friction_state,
 )
 from vestim.estimators.fusion import confidences, fuse
 from vestim.estimators.health import (
     health_params,
     imu_health_kernel,
     imu_health_params,
+    imu_health_step,
     new_imu_state,
     wheel_health_kernel,
+    wheel_health_step,
 )
 from vestim.estimators.health import new_state as new_health_state
 from vestim.estimators.uncertainty import OUTPUT_NAMES as SIGMA_NAMES
@@ -81,7 +85,6 @@ from vestim.estimators.uncertainty import (
     uncertainty_params,
 )
 from vestim.estimators.validity import GROUPS as VALIDITY_GROUPS
-from vestim.estimators.validity import MASKS as VALIDITY_MASKS
 from vestim.estimators.validity import output_names as validity_names
 from vestim.estimators.validity import validity, validity_params
 from vestim.estimators.velocity.corner import CornerVelocityEstimator, CornerVelocityInput
@@ -91,7 +94,10 @@ from vestim.estimators.velocity.lugre_kf import KFParams
 from vestim.estimators.velocity.reference import (
     ReferenceFilter,
     axle_slip_angles,
+    clear_state,
     gnss_calibration,
+    new_radius_state,
+    new_stiffness_state,
     radius_params,
     stiffness_params,
 )
@@ -154,13 +160,13 @@ class Pipeline:
                 prior = (cy_f + cy_r) / (b.mass * G)
         self._stiff_prm = stiffness_params(prior, self.config.cornering, b.wheel_radius,
                                            b.wheelbase)
-        self._stiff_state = np.zeros(9)
+        self._stiff_state = new_stiffness_state()
         self._radius_prm = radius_params(self.config.radius, b.wheel_radius)
-        self._radius_state = np.zeros(9)
+        self._radius_state = new_radius_state()
         self._t_gnss = np.nan  # time of the previous sample, for the GNSS fixes' weight
-        self._friction_prm = friction_params(self.config.friction)
-        self._friction_kx = corner_kx(vehicle, self.config.friction)
-        self._friction_state = np.full(4, np.nan)
+        self._friction_prm = friction_params(self.config.friction,
+                                             corner_kx(vehicle, self.config.friction))
+        self._friction_state = new_friction_state()
         self.force = ForceEstimator(vehicle, self.config.force_config())
         self.reference = ReferenceFilter(b.wheel_radius, b.lf, b.lr, self._xw, self._yw,
                                          self.config.reference)
@@ -190,13 +196,15 @@ class Pipeline:
         self._imu_prm = imu_health_params(self.config.imu_health, b.wheel_radius, b.track_f,
                                           b.track_r, b.lf)
         self._imu_state = new_imu_state()
-        self._imu_buf = (np.empty(1), np.empty((3, 1)), np.empty((1, 4)), np.zeros((1, 4)),
-                         np.empty((3, 1)), np.empty((1, 3)))
+        # step()'s one-sample buffers: wheel speeds, road-wheel angles, outputs, health rows
+        self._imu_buf = (np.empty(4), np.zeros(4), np.empty(3), np.empty((1, 3)))
         self._chunk_imu: np.ndarray | None = None  # IMU health rows of the block (run, step)
         self._unc_prm = uncertainty_params(vehicle, self.config.uncertainty)
+        self._validity_prm = validity_params(self.config.validity)
         self._unc_state = new_uncertainty_state()
-        self._unc_buf: tuple[np.ndarray, np.ndarray] | None = None  # step()'s index, buffer
-        self._health_buf = (np.empty(1), np.empty((1, 4)), np.empty((1, 4)), np.empty((1, 4)))
+        self._health_buf = (np.empty(4), np.empty((1, 4)), np.empty((1, 4)))
+        # step()'s compiled entry points (wheel health, IMU health, post) for these types
+        self._step_calls: tuple[Callable[..., None], ...] | None = None
         # health and "input faulty" rows of the block _advance is working on (run and step)
         self._chunk_faulty: np.ndarray | None = None
         self._chunk_health: np.ndarray | None = None
@@ -212,9 +220,9 @@ class Pipeline:
         if self.corner is not None:
             self.corner.reset()
         self._prev = np.array([np.nan, 0.0])
-        self._stiff_state[:] = 0.0
-        self._radius_state[:] = 0.0
-        self._friction_state[:] = np.nan
+        clear_state(self._stiff_state)
+        clear_state(self._radius_state)
+        self._friction_state = new_friction_state()
         self._t_prev_step = -math.inf
         self._last_good = (-math.inf, {})
         self._health_state = new_health_state()
@@ -305,14 +313,14 @@ class Pipeline:
         # Linear-tire axle slip angles with the cornering stiffness identified online.
         axle_slip = np.empty((n, 2))
         c_y = np.empty(n)
-        axle_slip_angles(u.t, u.omega, u.yaw_rate, u.delta, res["fy"], fz, self._stiff_prm,
-                         self._stiff_state, axle_slip, c_y)
+        axle_slip_angles(self._stiff_prm, self._stiff_state, u.t, u.omega, u.yaw_rate, u.delta,
+                         res["fy"], fz, axle_slip, c_y)
         # The velocity stage sees the wheel speeds at the effective radius that the GNSS
         # speed shows, and the fixes brought forward by the receiver's latency (scale 1 and
         # no measurement without gnss_speed).
         scale, latency, gnss_now = np.empty((3, n))
         if wheels:
-            gnss_calibration(u.t, u.omega, u.gnss_speed, self._radius_prm, self._radius_state,
+            gnss_calibration(self._radius_prm, self._radius_state, u.t, u.omega, u.gnss_speed,
                              scale, latency, gnss_now)
         else:  # no wheel speeds to scale nor to find the latency against
             scale[:], latency[:], gnss_now[:] = 1.0, 0.0, u.gnss_speed
@@ -405,10 +413,10 @@ class Pipeline:
                     "vxt": vxt, "vyt": vyt,
                     "slip_ratio": slip_ratio, "slip_angle": slip_angle})
         res["mu"], res["sigma_mu"], res["mu_excited"] = friction_potential(
-            u.t, res["fx"], res["fy"], res["fz"], res["sigma_fx"], res["sigma_fy"], slip_ratio,
-            slip_angle, np.fmax(sig[:, 1], self.config.friction.sigma_vy_floor)
-            / np.maximum(np.abs(v[:, 0]), 1.0), c_y, self._friction_kx,
-            self._friction_prm, self._friction_state)
+            self._friction_prm, self._friction_state, u.t, res["fx"], res["fy"], res["fz"],
+            res["sigma_fx"], res["sigma_fy"], slip_ratio, slip_angle,
+            np.fmax(sig[:, 1], self._friction_prm.sigma_vy_floor)
+            / np.maximum(np.abs(v[:, 0]), 1.0), c_y)
         if math.isnan(self._t_start):
             self._t_start = float(u.t[0])
         if wheels:
@@ -468,57 +476,76 @@ class Pipeline:
         groups.append((["health_ax", "health_ay", "health_yaw_rate"], res["health_imu"]))
         return groups
 
+    def _calls(self) -> tuple[Callable[..., None], ...]:
+        """:meth:`step`'s compiled per-sample calls (:func:`wheel_health_step`,
+        :func:`imu_health_step`, :func:`online.post_step_kernel`) as entry points for the
+        Numba types of this pipeline's params, states and buffers, made once: a call then
+        skips the dispatcher's typing of each NamedTuple argument (several µs a call). They
+        are only called with those objects (a reset state is a new one of the same type)."""
+        if self._step_calls is None:
+            w, out, health = self._health_buf
+            wi, delta, out3, health3 = self._imu_buf
+            wheel = _compiled(wheel_health_step, self._health_prm, self._health_state, 0.0, w,
+                              out[0], health[0])
+            imu = _compiled(imu_health_step, self._imu_prm, self._imu_state, 0.0, 0.0, 0.0,
+                            0.0, wi, delta, out3, health3[0])
+            post = _compiled(online.post_step_kernel, self._friction_prm,
+                             self._friction_state, self._validity_prm, self._unc_prm,
+                             self._unc_state, np.empty(1), np.empty(1, dtype=np.int64),
+                             np.empty(1, dtype=np.int64), np.empty(1), False, 0.0, health[0],
+                             health3[0], np.empty(1))
+            self._step_calls = (wheel, imu, post)
+        return self._step_calls
+
     def _wheel_health(self, sample: Mapping[str, float]) -> Mapping[str, float]:
-        """:mod:`vestim.estimators.health` on one sample (the kernel and state of run())."""
-        tb, w, out, health = self._health_buf
+        """:mod:`vestim.estimators.health` on one sample (the step and state of run())."""
+        w, out, health = self._health_buf
         try:
-            w[0, 0], w[0, 1] = float(sample["omega_fl"]), float(sample["omega_fr"])
-            w[0, 2], w[0, 3] = float(sample["omega_rl"]), float(sample["omega_rr"])
+            w[0], w[1] = float(sample["omega_fl"]), float(sample["omega_fr"])
+            w[2], w[3] = float(sample["omega_rl"]), float(sample["omega_rr"])
         except KeyError:  # no wheel speeds: nothing to check
-            self._chunk_faulty = np.array([self._held_now])
+            self._chunk_faulty = _HELD[self._held_now]
             self._chunk_health = None
             return sample
-        tb[0] = float(sample["t"])
-        wheel_health_kernel(tb, w, self._health_prm, self._health_state, out, health)
+        self._calls()[0](self._health_prm, self._health_state, float(sample["t"]), w, out[0],
+                         health[0])
         self._chunk_health = health
-        h = health[0]
+        h = health[0].tolist()
         bad = h[0] + h[1] + h[2] + h[3] < 4.0
         self._held_now = self._held_now or bad
-        self._chunk_faulty = np.array([self._held_now])
+        self._chunk_faulty = _HELD[self._held_now]
         if not bad:
             return sample
         fixed = dict(sample)
-        for j, c in enumerate(CORNERS):
-            fixed[f"omega_{c}"] = float(out[0, j])
+        fixed.update(zip(_OMEGA_KEYS, out[0].tolist(), strict=True))
         return fixed
 
     def _imu_health(self, sample: Mapping[str, float]) -> Mapping[str, float]:
-        """:mod:`vestim.estimators.health.imu` on one sample (the kernel and state of run(),
+        """:mod:`vestim.estimators.health.imu` on one sample (the step and state of run(),
         after the wheel health and the calibration, as there)."""
-        t, x, w, delta, out, health = self._imu_buf
-        t[0] = float(sample["t"])
-        for j, key in enumerate(("ax", "ay", "yaw_rate")):
-            x[j, 0] = float(sample.get(key, np.nan))
-        for j, c in enumerate(CORNERS):
-            w[0, j] = float(sample.get(f"omega_{c}", np.nan))
+        w, delta, out, health = self._imu_buf
+        get = sample.get
+        w[0], w[1] = float(get("omega_fl", np.nan)), float(get("omega_fr", np.nan))
+        w[2], w[3] = float(get("omega_rl", np.nan)), float(get("omega_rr", np.nan))
         if "delta_fl" in sample and "delta_fr" in sample:
-            delta[0, 0], delta[0, 1] = float(sample["delta_fl"]), float(sample["delta_fr"])
+            delta[0], delta[1] = float(sample["delta_fl"]), float(sample["delta_fr"])
         else:
             d = (float(sample["delta"]) if "delta" in sample else
-                 float(sample.get("steering_wheel_angle", 0.0))
-                 / self.vehicle.body.steering_ratio)
-            delta[0, 0] = delta[0, 1] = d
-        imu_health_kernel(t, x[0], x[1], x[2], w, delta, self._imu_prm, self._imu_state,
-                          out[0], out[1], out[2], health)
+                 float(get("steering_wheel_angle", 0.0)) / self.vehicle.body.steering_ratio)
+            delta[0] = delta[1] = d
+        self._calls()[1](self._imu_prm, self._imu_state, float(sample["t"]),
+                         float(get("ax", np.nan)), float(get("ay", np.nan)),
+                         float(get("yaw_rate", np.nan)), w, delta, out, health[0])
         self._chunk_imu = health
-        if health[0].min() == 1.0:
+        h = health[0].tolist()
+        if min(h) == 1.0:
             return sample
         self._held_now = True
-        self._chunk_faulty = np.array([True])
+        self._chunk_faulty = _HELD[True]
         fixed = dict(sample)
-        for j, key in enumerate(("ax", "ay", "yaw_rate")):
+        for key, value in zip(("ax", "ay", "yaw_rate"), out.tolist(), strict=True):
             if key in fixed:
-                fixed[key] = float(out[j, 0])
+                fixed[key] = value
         return fixed
 
     def _hold_gaps(self, sample: Mapping[str, float]) -> Mapping[str, float]:
@@ -623,13 +650,13 @@ class Pipeline:
                 for s_, e in itertools.pairwise(cuts):
                     if s_ in restarts:
                         health_state, imu_state = new_health_state(), new_imu_state()
-                    wheel_health_kernel(u.t[s_:e], np.ascontiguousarray(u.omega[s_:e]),
-                                        self._health_prm, health_state, omega[s_:e],
+                    wheel_health_kernel(self._health_prm, health_state, u.t[s_:e],
+                                        np.ascontiguousarray(u.omega[s_:e]), omega[s_:e],
                                         health[s_:e])
-                    imu_health_kernel(u.t[s_:e], u.ax[s_:e], u.ay[s_:e], u.yaw_rate[s_:e],
-                                      omega[s_:e], np.ascontiguousarray(u.delta[s_:e]),
-                                      self._imu_prm, imu_state, imu[0, s_:e], imu[1, s_:e],
-                                      imu[2, s_:e], imu_health[s_:e])
+                    imu_health_kernel(self._imu_prm, imu_state, u.t[s_:e], u.ax[s_:e],
+                                      u.ay[s_:e], u.yaw_rate[s_:e], omega[s_:e],
+                                      np.ascontiguousarray(u.delta[s_:e]), imu[0, s_:e],
+                                      imu[1, s_:e], imu[2, s_:e], imu_health[s_:e])
                 u = replace(u, omega=omega, ax=imu[0], ay=imu[1], yaw_rate=imu[2])
                 faulty = np.any(health == 0.0, axis=1) | np.any(imu_health == 0.0, axis=1)
                 spans = [(a, min(a + chunk, e)) for s_, e in itertools.pairwise(cuts)
@@ -716,7 +743,7 @@ class Pipeline:
         out = np.empty(len(self._step_names))
         args = self._step_args
         online.step_kernel(s, out, *args)
-        pstate = args[34]
+        pstate = args[online.STEP_PSTATE]
         self._prev = pstate[:2]  # a view: the general path replaces it, never writes into it
         self._fused_is_reference = bool(pstate[2])
         if self.corner is not None and self.config.velocity == "fused":
@@ -737,48 +764,54 @@ class Pipeline:
         return row
 
     def _fast_post(self, out: np.ndarray, s: np.ndarray, row: dict[str, float]) -> None:
-        """The friction, validity and uncertainty stages for one sample ``s`` (layout of
-        :data:`~vestim.pipeline.online.SAMPLE_KEYS` + δ_fl, δ_fr) of the compiled path, on
-        buffers made once (the same kernels as :meth:`_advance`)."""
+        """The friction, validity and uncertainty stages and the health flags for one sample
+        ``s`` (layout of :data:`~vestim.pipeline.online.SAMPLE_KEYS` + δ_fl, δ_fr) of the
+        compiled path, in one call of :func:`~vestim.pipeline.online.post_step_kernel`
+        (the same steps as :meth:`_advance`'s kernels) on buffers made once."""
         if self._post is None:
             at = {name: j for j, name in enumerate(self._step_names)}
             ix = [at["t"], at["vx"], at["sigma_vy"], at["cornering_stiffness"]]
             ix += [at[f"{q}_{c}"] for q in ("fx", "fy", "fz", "sigma_fx", "sigma_fy",
                                             "slip_ratio", "slip_angle") for c in CORNERS]
-            self._post = (np.array(ix, dtype=np.int64), np.empty((1, 4)), np.empty((1, 4)),
-                          np.empty((1, 4)), np.empty((1, 3)), np.empty((1, 3)),
-                          validity_params(self.config.validity))
-        ix, mu, smu, ex, valid, reason, vprm = self._post
+            ix_unc = [at[k] for k in ("vx", "sigma_vx", "sigma_vy", "cornering_stiffness")]
+            ix_unc += [at[f"{q}_{c}"] for q in ("fz", "vxt", "vyt", "slip_ratio")
+                       for c in CORNERS]
+            self._post = (np.array(ix, dtype=np.int64), np.array(ix_unc, dtype=np.int64),
+                          np.empty(online.N_POST))
+        ix, ix_unc, post = self._post
         if math.isnan(self._t_start):
             self._t_start = float(out[ix[0]])
-        online.post_step_kernel(out, ix, s[15], s[16], s[10], self._held_now, self._t_start,
-                                self.config.friction.sigma_vy_floor, self._friction_prm,
-                                self._friction_kx, self._friction_state, vprm, VALIDITY_MASKS,
-                                mu, smu, ex, valid, reason)
-        for j, c in enumerate(CORNERS):
-            row[f"mu_{c}"], row[f"sigma_mu_{c}"] = float(mu[0, j]), float(smu[0, j])
-            row[f"mu_{c}_excited"] = float(ex[0, j])
-        for j, g in enumerate(VALIDITY_GROUPS):
-            row[f"valid_{g}"], row[f"reason_{g}"] = float(valid[0, j]), float(reason[0, j])
-        health = self._chunk_health
-        for j, c in enumerate(CORNERS):
-            row[f"health_omega_{c}"] = 1.0 if health is None else float(health[0, j])
-        imu = self._chunk_imu
-        for j, key in enumerate(("ax", "ay", "yaw_rate")):
-            row[f"health_{key}"] = 1.0 if imu is None else float(imu[0, j])
-        self._fast_sigma(out, s, row)
+        ones = _ONES
+        wheel = ones if self._chunk_health is None else self._health_buf[2][0]
+        imu = ones if self._chunk_imu is None else self._imu_buf[3][0]
+        self._calls()[2](self._friction_prm, self._friction_state, self._validity_prm,
+                         self._unc_prm, self._unc_state, out, ix, ix_unc, s,
+                         bool(self._held_now), self._t_start, wheel, imu, post)
+        row.update(zip(_POST_NAMES, post.tolist(), strict=True))
 
-    def _fast_sigma(self, out: np.ndarray, s: np.ndarray, row: dict[str, float]) -> None:
-        """The uncertainty stage for one sample of the compiled path (the kernel of
-        :meth:`_advance`, through :func:`~vestim.pipeline.online.uncertainty_step_kernel`)."""
-        if self._unc_buf is None:
-            at = {name: j for j, name in enumerate(self._step_names)}
-            ix = [at[k] for k in ("vx", "vy", "sigma_vx", "sigma_vy", "cornering_stiffness")]
-            ix += [at[f"{q}_{c}"] for q in ("fz", "vxt", "vyt", "slip_ratio") for c in CORNERS]
-            self._unc_buf = (np.array(ix, dtype=np.int64), np.empty((1, len(SIGMA_NAMES))))
-        ix_, sig = self._unc_buf
-        online.uncertainty_step_kernel(out, ix_, s, self._unc_prm, self._unc_state, sig)
-        row.update(zip(SIGMA_NAMES, sig[0].tolist(), strict=True))
+
+_HELD = {False: np.array([False]), True: np.array([True])}
+"""step()'s "input held" row of the block, by value (read only)."""
+
+_ONES = np.ones(4)
+"""The health of a stage that did not run in step() (1.0: healthy)."""
+
+_OMEGA_KEYS = tuple(f"omega_{c}" for c in CORNERS)
+
+_POST_NAMES: tuple[str, ...] = (
+    *(n for c in CORNERS for n in (f"mu_{c}", f"sigma_mu_{c}", f"mu_{c}_excited")),
+    *(n for g in VALIDITY_GROUPS for n in (f"valid_{g}", f"reason_{g}")),
+    *(f"health_omega_{c}" for c in CORNERS), "health_ax", "health_ay", "health_yaw_rate",
+    *SIGMA_NAMES)
+"""The names of :func:`online.post_step_kernel`'s ``post`` row, in order (step()'s row
+order)."""
+
+
+def _compiled(kernel: Any, *args: Any) -> Callable[..., None]:
+    """The compiled entry point of the Numba ``kernel`` for the types of ``args`` (loaded
+    from the cache or compiled): a call skips the dispatcher's per-call typing. Call it
+    only with arguments of those types."""
+    return kernel.compile(tuple(numba.typeof(a) for a in args))
 
 
 def estimate(

@@ -203,7 +203,10 @@ def _values(cls: type, table: dict[str, Any], where: str) -> dict[str, Any]:
         if key not in allowed:
             raise PipelineConfigError(f"[{where}] has unknown key {key!r}; allowed: "
                                       f"{', '.join(allowed)}")
-        out[key] = _convert(hints[key], value, f"{where}.{key}")
+        if cls is PipelineConfig and key not in PARAMETER_TABLES:
+            out[key] = value  # a method name or the gains path: __post_init__ says what is wrong
+        else:
+            out[key] = _convert(hints[key], value, f"{where}.{key}")
     if cls is not PipelineConfig:
         try:
             cls(**out)

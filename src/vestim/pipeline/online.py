@@ -32,12 +32,26 @@ from vestim.estimators.force.normal import (
     normal_load_params,
     normal_loads_kernel,
 )
-from vestim.estimators.friction import friction_kernel
+from vestim.estimators.friction import FrictionKernelParams, FrictionState, friction_step
 from vestim.estimators.fusion.axle import adaptive_axle_kernel, fixed_axle_kernel
-from vestim.estimators.uncertainty import uncertainty_kernel
-from vestim.estimators.validity import validity_kernel
+from vestim.estimators.uncertainty import N_OUT as N_SIGMA
+from vestim.estimators.uncertainty import (
+    UncertaintyKernelParams,
+    UncertaintyState,
+    uncertainty_step,
+)
+from vestim.estimators.validity import GROUPS as VALIDITY_GROUPS
+from vestim.estimators.validity import ValidityKernelParams, validity_step
 from vestim.estimators.velocity.lugre_kf import KFParams, lugre_kf_kernel
-from vestim.estimators.velocity.reference import axle_slip_angles, reference_kernel
+from vestim.estimators.velocity.reference import (
+    ReferenceKernelParams,
+    ReferenceState,
+    StiffnessKernelParams,
+    StiffnessState,
+    copy_reference_state,
+    reference_step,
+    stiffness_step,
+)
 from vestim.models.chassis import torque_less_rolling_resistance
 from vestim.models.kinematics import (
     corner_acc_kernel,
@@ -69,11 +83,9 @@ def step_kernel(s: np.ndarray, out: np.ndarray, fprm: np.ndarray, nl_prm: np.nda
                 lon_x: np.ndarray, lon_P: np.ndarray, lon_ht: np.ndarray, lon_hw: np.ndarray,
                 xw: np.ndarray, yw: np.ndarray, q_lat: np.ndarray, r_lat: np.ndarray,
                 w4: np.ndarray, c4: np.ndarray, tau4: float, lat_x: np.ndarray,
-                lat_P: np.ndarray, lat_state: np.ndarray, stiff_prm: np.ndarray,
-                stiff_state: np.ndarray,
-                ref_prm: np.ndarray, ref_x: np.ndarray, ref_P: np.ndarray, ref_hist: np.ndarray,
-                ref_state: np.ndarray, fused: bool, fus_x: np.ndarray, fus_P: np.ndarray,
-                fus_hist: np.ndarray, fus_state: np.ndarray, pstate: np.ndarray,
+                lat_P: np.ndarray, lat_state: np.ndarray, stiff_prm: StiffnessKernelParams,
+                stiff_st: StiffnessState, ref_prm: ReferenceKernelParams, ref_st: ReferenceState,
+                fused: bool, fus_st: ReferenceState, pstate: np.ndarray,
                 kf_prm: np.ndarray, kf_q: np.ndarray, kf_qh: np.ndarray, kf_p0: np.ndarray,
                 kf_window: int, kf_ukf: bool, kf_wm: np.ndarray, kf_wc: np.ndarray,
                 kf_tau: float, kf_x: np.ndarray, kf_P: np.ndarray, kf_hold: np.ndarray,
@@ -91,7 +103,11 @@ def step_kernel(s: np.ndarray, out: np.ndarray, fprm: np.ndarray, nl_prm: np.nda
     UKFParams.noise_online (1/0) … resolve_time in the kernel's order];
     ``kf_prm`` = [κ, σ0, σ1, σ2,
     r, r_high, step_ref, λ_u, λ_l, β_e, ω̇_th, min speed, μ release]; ``pstate`` =
-    [t_prev, r_prev, fused filter still identical to the plain one (1/0)];
+    [t_prev, r_prev, fused filter still identical to the plain one (1/0)]; ``stiff_prm``,
+    ``stiff_st``, ``ref_prm``, ``ref_st`` and ``fus_st`` (the fused filter's state) as
+    :func:`~vestim.estimators.velocity.reference.stiffness_step`'s and
+    :func:`~vestim.estimators.velocity.reference.reference_step`'s (``ref_prm.kin_fx``
+    false: the sample has ``ax``);
     ``fusion_prm`` = [η_front, w_s, w_range, ρ, λ_th].
     """
     t1 = s[S_T:S_T + 1]
@@ -115,7 +131,7 @@ def step_kernel(s: np.ndarray, out: np.ndarray, fprm: np.ndarray, nl_prm: np.nda
     f_x, f_y = fxa[0], fya[0]
     fz = normal_loads_kernel(fxa, fya, fza, roll, pitch, s[S_P:S_P + 1], s[S_Q:S_Q + 1],
                              roll_acc, pitch_acc, nl_prm, dynamic)
-    m, lf, lr = nl_prm[0], nl_prm[9], nl_prm[10]
+    m = nl_prm[0]
     teff = torque_less_rolling_resistance(torque, omega, fz, fprm[4] * radius)
     fx = np.empty((1, 4))
     sig_fx = np.full((1, 4), np.nan)
@@ -141,7 +157,7 @@ def step_kernel(s: np.ndarray, out: np.ndarray, fprm: np.ndarray, nl_prm: np.nda
     mu_y = normalised(fy, fz)
     axle = np.empty((1, 2))
     c_y = np.empty(1)
-    axle_slip_angles(t1, omega, r1, delta, fy, fz, stiff_prm, stiff_state, axle, c_y)
+    stiffness_step(stiff_prm, stiff_st, 0, t1, omega, r1, delta, fy, fz, axle, c_y)
     none_v = np.full((1, 0), np.nan)
     v_ref = np.empty((1, 2))
     sig_ref = np.empty((1, 2))
@@ -149,11 +165,11 @@ def step_kernel(s: np.ndarray, out: np.ndarray, fprm: np.ndarray, nl_prm: np.nda
     trust = np.empty((1, 4))
     same = fused and pstate[2] == 1.0
     if same:
-        snap_x, snap_P = ref_x.copy(), ref_P.copy()
-        snap_h, snap_s = ref_hist.copy(), ref_state.copy()
-    reference_kernel(t1, omega, torque, mu_x, axle, fxa, fya, r1, delta, none_v, none_v,
-                     radius, lf, lr, xw, yw, ref_prm, ref_x, ref_P, ref_hist, ref_state,
-                     v_ref, sig_ref, bias_ref, trust)
+        # While it is the plain filter the fused filter's state is not used: it holds the
+        # plain filter's state before this sample, the start of its first own step.
+        copy_reference_state(fus_st, ref_st)
+    reference_step(ref_prm, ref_st, 0, t1, omega, torque, mu_x, axle, fxa, fya, r1, delta,
+                   none_v, none_v, v_ref, sig_ref, bias_ref, trust)
     v = v_ref
     sig = sig_ref
     bias = bias_ref
@@ -222,22 +238,17 @@ def step_kernel(s: np.ndarray, out: np.ndarray, fprm: np.ndarray, nl_prm: np.nda
             n_high += 1 if k_high[0, i] else 0
         if not (same and n_high < 3):
             if same:
-                fus_x[:] = snap_x
-                fus_P[:, :] = snap_P
-                fus_hist[:, :] = snap_h
-                fus_state[:] = snap_s
                 pstate[2] = 0.0
             extra = np.full((1, 1), np.nan)
             var = np.full((1, 1), np.nan)
             if n_high >= 3:
                 extra[0, 0] = vx_f[0]
-                var[0, 0] = ref_prm[-1] ** 2
+                var[0, 0] = ref_prm.sigma_corner_slip ** 2
             v = np.empty((1, 2))
             sig = np.empty((1, 2))
             bias = np.empty((1, 3))
-            reference_kernel(t1, omega, torque, mu_x, axle, fxa, fya, r1, delta, extra, var,
-                             radius, lf, lr, xw, yw, ref_prm, fus_x, fus_P, fus_hist, fus_state,
-                             v, sig, bias, trust)
+            reference_step(ref_prm, fus_st, 0, t1, omega, torque, mu_x, axle, fxa, fya, r1,
+                           delta, extra, var, v, sig, bias, trust)
     # --- outputs (Pipeline._groups order) ---
     vx_o, vy_o = transport_kernel(v[0, 0:1].copy(), v[0, 1:2].copy(), r1, xw, yw, 1.0)
     vxt = np.empty((1, 4))
@@ -267,6 +278,9 @@ def step_kernel(s: np.ndarray, out: np.ndarray, fprm: np.ndarray, nl_prm: np.nda
     out[k + 1] = pitch[0]
     out[k + 2] = bias[0, 0]
     out[k + 3] = c_y[0]
+
+
+STEP_PSTATE = 28  # position of pstate in build_step's tuple
 
 
 def build_step(pipe: Pipeline) -> tuple[Any, ...] | None:
@@ -317,77 +331,71 @@ def build_step(pipe: Pipeline) -> tuple[Any, ...] | None:
     ap = cfg.fusion_params.adaptive
     fusion_prm = np.array([cfg.fusion_params.eta_front, ap.w_s, ap.w_range, ap.rho,
                            ap.threshold])
-    ref_prm = np.append(ref._prm, ref.params.sigma_corner_slip)
     pstate = np.array([pipe._prev[0], pipe._prev[1], 1.0 if pipe._fused_is_reference else 0.0])
     force = (fprm, normal_load_params(veh), fc.normal == "dynamic", fe._att, fe._att_prm,
              lon_prm, lon._wm,
              lon._wc, lon._x, lon._P, lon._hist_t, lon._hist_w, fe._xw, fe._yw, fe._q_lat,
              fe._r_lat, fe._w4, fe._c4, float(fe._tau4), fe._lat_x, fe._lat_P, fe._lat_state,
              pipe._stiff_prm, pipe._stiff_state)
-    velocity = (ref_prm, ref._x, ref._P, ref._hist, ref._state, fused, fus._x, fus._P,
-                fus._hist, fus._state, pstate)
+    velocity = (ref.kernel_params, ref.state, fused, fus.state, pstate)
+    assert len(force) + 4 == STEP_PSTATE
     return (*force, *velocity, *kf, cfg.fusion == "adaptive", fusion_prm)
 
 
-@njit(cache=True)
-def post_step_kernel(out: np.ndarray, ix: np.ndarray, delta_l: float, delta_r: float, ay: float,
-                     held: bool, t_start: float, sigma_vy_floor: float, fprm: np.ndarray,
-                     fkx: np.ndarray, fstate: np.ndarray, vprm: np.ndarray, masks: np.ndarray,
-                     mu: np.ndarray, smu: np.ndarray, ex: np.ndarray, valid: np.ndarray,
-                     reason: np.ndarray) -> None:
-    """The friction and validity stages of one sample of :func:`step_kernel`'s output row.
-
-    ``ix`` holds the positions in ``out`` of t, v_x, σ_vy, the cornering stiffness, then per
-    corner F_x, F_y, F_z, σ_Fx, σ_Fy, slip ratio, slip angle (4 each). Same kernels as the
-    batch path (:func:`friction_kernel`, :func:`validity_kernel`), so step equals run.
-    """
-    t = np.empty(1)
-    t[0] = out[ix[0]]
-    vx = np.empty(1)
-    vx[0] = out[ix[1]]
-    fx, fy, fz = np.empty((1, 4)), np.empty((1, 4)), np.empty((1, 4))
-    sfx, sfy = np.empty((1, 4)), np.empty((1, 4))
-    sr, sa = np.empty((1, 4)), np.empty((1, 4))
-    for c in range(4):
-        fx[0, c], fy[0, c], fz[0, c] = out[ix[4 + c]], out[ix[8 + c]], out[ix[12 + c]]
-        sfx[0, c], sfy[0, c] = out[ix[16 + c]], out[ix[20 + c]]
-        sr[0, c], sa[0, c] = out[ix[24 + c]], out[ix[28 + c]]
-    sig_a = np.empty(1)
-    s = max(out[ix[2]], sigma_vy_floor) / max(abs(vx[0]), 1.0)
-    sig_a[0] = s if np.isfinite(s) else 0.0
-    ky = np.empty(1)
-    ky[0] = out[ix[3]]
-    friction_kernel(t, fx, fy, fz, sfx, sfy, sr, sa, sig_a, ky, fkx, fprm, fstate, mu, smu, ex)
-    delta = np.empty((1, 2))
-    delta[0, 0], delta[0, 1] = delta_l, delta_r
-    a = np.empty(1)
-    a[0] = ay
-    h = np.empty(1, dtype=np.bool_)
-    h[0] = held
-    validity_kernel(t, t_start, vx, sr, sa, delta, a, h, vprm, masks, valid, reason)
+N_GROUPS = len(VALIDITY_GROUPS)
+N_POST = 3 * 4 + 2 * N_GROUPS + 4 + 3 + N_SIGMA
+"""Length of :func:`post_step_kernel`'s ``post`` row (see there)."""
 
 
 @njit(**_JIT)
-def uncertainty_step_kernel(out: np.ndarray, ix: np.ndarray, s: np.ndarray, prm: np.ndarray,
-                            state: np.ndarray, sig: np.ndarray) -> None:
-    """The uncertainty stage of one sample of :func:`step_kernel`'s output row ``out``
-    (:func:`~vestim.estimators.uncertainty.uncertainty_kernel`, as the batch path calls it),
-    into ``sig`` (1, N_OUT).
+def post_step_kernel(fp: FrictionKernelParams, fs: FrictionState, vp: ValidityKernelParams,
+                     up: UncertaintyKernelParams, us: UncertaintyState, out: np.ndarray,
+                     ix: np.ndarray, ix_unc: np.ndarray, s: np.ndarray, held: bool,
+                     t_start: float, wheel_health: np.ndarray, imu_health: np.ndarray,
+                     post: np.ndarray) -> None:
+    """The friction, validity and uncertainty stages of one sample of :func:`step_kernel`'s
+    output row ``out`` (their steps, as the batch kernels call them, so step equals run),
+    and the row's health flags, into ``post`` (:data:`N_POST`,): per corner μ, σ_μ and the
+    excitation flag; per validity group ``valid`` and ``reason``; the wheel-speed health
+    (4) and the IMU health (3) copied from ``wheel_health`` and ``imu_health``; the
+    uncertainty stage's σ (in :data:`~vestim.estimators.uncertainty.OUTPUT_NAMES` order).
 
-    ``ix`` holds the positions in ``out`` of v_x, v_y, σ_vx, σ_vy (the filter's), the
-    cornering stiffness, then per corner F_z, v_xt, v_yt, slip ratio (4 each); ``s`` is the
-    sample (layout :data:`SAMPLE_KEYS` + δ_fl, δ_fr).
+    ``ix`` holds the positions in ``out`` of t, v_x, σ_vy, the cornering stiffness, then per
+    corner F_x, F_y, F_z, σ_Fx, σ_Fy, slip ratio, slip angle (4 each); ``ix_unc`` those of
+    v_x, σ_vx, σ_vy (the filter's), the cornering stiffness, then per corner F_z, v_xt,
+    v_yt, slip ratio (4 each). ``s`` is the sample (layout :data:`SAMPLE_KEYS` + δ_fl, δ_fr);
+    ``held`` an input value was held over a dropout; ``t_start`` the first sample's time (s).
     """
-    t, ax, ay, cy = np.empty(1), np.empty(1), np.empty(1), np.empty(1)
-    t[0], ax[0], ay[0], cy[0] = s[0], s[9], s[10], out[ix[4]]
-    v, sv = np.empty((1, 2)), np.empty((1, 2))
-    v[0, 0], v[0, 1], sv[0, 0], sv[0, 1] = out[ix[0]], out[ix[1]], out[ix[2]], out[ix[3]]
-    delta = np.zeros((1, 4))
-    delta[0, 0], delta[0, 1] = s[15], s[16]
-    omega, fz, vxt, vyt, slip = (np.empty((1, 4)), np.empty((1, 4)), np.empty((1, 4)),
-                                 np.empty((1, 4)), np.empty((1, 4)))
-    for i in range(4):
-        omega[0, i] = s[1 + i]
-        fz[0, i], vxt[0, i] = out[ix[5 + i]], out[ix[9 + i]]
-        vyt[0, i], slip[0, i] = out[ix[13 + i]], out[ix[17 + i]]
-    uncertainty_kernel(t, v, sv, delta, omega, ax, ay, fz, vxt, vyt, slip, cy, prm, state, sig)
+    t, vx = out[ix[0]], out[ix[1]]
+    fx, fy, fz = np.empty(4), np.empty(4), np.empty(4)
+    sfx, sfy, sr, sa = np.empty(4), np.empty(4), np.empty(4), np.empty(4)
+    for c in range(4):
+        fx[c], fy[c], fz[c] = out[ix[4 + c]], out[ix[8 + c]], out[ix[12 + c]]
+        sfx[c], sfy[c] = out[ix[16 + c]], out[ix[20 + c]]
+        sr[c], sa[c] = out[ix[24 + c]], out[ix[28 + c]]
+    sig = max(out[ix[2]], fp.sigma_vy_floor) / max(abs(vx), 1.0)
+    sig_a = sig if np.isfinite(sig) else 0.0
+    mu, smu, ex = np.empty(4), np.empty(4), np.empty(4)
+    friction_step(fp, fs, t, fx, fy, fz, sfx, sfy, sr, sa, sig_a, out[ix[3]], mu, smu, ex)
+    for c in range(4):
+        post[3 * c], post[3 * c + 1], post[3 * c + 2] = mu[c], smu[c], ex[c]
+    n_g = N_GROUPS
+    valid, reason = np.empty(n_g), np.empty(n_g)
+    validity_step(vp, t, t_start, vx, sr, sa, s[S_DELTA], s[S_DELTA + 1], s[S_AY], held,
+                  valid, reason)
+    for g in range(n_g):
+        post[12 + 2 * g], post[13 + 2 * g] = valid[g], reason[g]
+    j = 12 + 2 * n_g
+    for c in range(4):
+        post[j + c] = wheel_health[c]
+    for c in range(3):
+        post[j + 4 + c] = imu_health[c]
+    delta = np.zeros(4)
+    delta[0], delta[1] = s[S_DELTA], s[S_DELTA + 1]
+    omega, vxt, vyt = np.empty(4), np.empty(4), np.empty(4)
+    for c in range(4):
+        omega[c] = s[S_OMEGA + c]
+        fz[c], vxt[c] = out[ix_unc[4 + c]], out[ix_unc[8 + c]]
+        vyt[c], sr[c] = out[ix_unc[12 + c]], out[ix_unc[16 + c]]
+    uncertainty_step(up, us, s[S_T], out[ix_unc[0]], out[ix_unc[1]], out[ix_unc[2]], delta,
+                     omega, s[S_AX], s[S_AY], fz, vxt, vyt, sr, out[ix_unc[3]], post[j + 7:])

@@ -4,13 +4,21 @@ logic against a tire that follows the model exactly, then against one that does 
 from __future__ import annotations
 
 import math
+from dataclasses import fields
 
 import numpy as np
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from vestim.estimators.friction import FrictionParams, friction_kernel, friction_params, invert_shape
+from vestim.estimators.friction import (
+    FrictionKernelParams,
+    FrictionParams,
+    friction_kernel,
+    friction_params,
+    invert_shape,
+    new_friction_state,
+)
 
 
 def _mf(z: float, c: float) -> float:
@@ -46,9 +54,9 @@ def _run(u_x, u_y, slip_ratio, slip_angle, ky=20.0, kx=20.0, sigma_u=0.01, p=Non
     smu = np.empty((n, 4))
     ex = np.empty((n, 4))
     one = np.ones((n, 4))  # F_z = 1 N: the forces are the normalised ones
-    friction_kernel(t, col(u_x), col(u_y), one, col(np.full(n, sigma_u)), np.zeros((n, 4)),
-                    col(slip_ratio), col(slip_angle), np.zeros(n), np.full(n, ky),
-                    np.full(4, kx), friction_params(p), np.full(4, np.nan), mu, smu, ex)
+    friction_kernel(friction_params(p, np.full(4, kx)), new_friction_state(), t, col(u_x),
+                    col(u_y), one, col(np.full(n, sigma_u)), np.zeros((n, 4)),
+                    col(slip_ratio), col(slip_angle), np.zeros(n), np.full(n, ky), mu, smu, ex)
     return mu[:, 0], smu[:, 0], ex[:, 0]
 
 
@@ -92,3 +100,32 @@ def test_params_are_validated():
         FrictionParams(shape_lateral=2.5)
     with pytest.raises(ValueError, match="sigma_max"):
         FrictionParams(sigma_max=0.0)
+
+
+def test_params_are_packed_from_the_config_and_the_stiffness() -> None:
+    """Every config field the kernel reads is the config's (non-default values) and the
+    corners' K_x are the ``kx`` given, by name."""
+    cfg = FrictionParams(shape_lateral=1.2, shape_longitudinal=1.5, kx_nominal=25.0,
+                         sigma_k=0.1, sigma_slip_ratio=0.02, sigma_slip_angle=0.004,
+                         excess_sigmas=2.5, sigma_max=0.06, u_min=0.1, persist_s=0.02,
+                         sigma_vy_floor=0.2)
+    prm = friction_params(cfg, np.array([18.0, 19.0, 21.0, 22.0]))
+    assert isinstance(prm, FrictionKernelParams)
+    for f in fields(FrictionParams):
+        if f.name in FrictionKernelParams._fields:
+            assert getattr(prm, f.name) == getattr(cfg, f.name), f.name
+    assert (prm.kx_fl, prm.kx_fr, prm.kx_rl, prm.kx_rr) == (18.0, 19.0, 21.0, 22.0)
+
+
+def test_persistence_and_u_min_reach_the_kernel() -> None:
+    """The saturated ice tire of the test above (u = 0.300): with persist_s = 0.05 s the
+    flag waits 10 samples of 5 ms (2 with the default 0.01 s); with u_min = 0.35 (above
+    u) it never comes."""
+    mu_true, alpha = 0.3, -math.radians(3.0)
+    u = mu_true * _mf(abs(20.0 * math.tan(alpha)) / mu_true, 1.3)
+    n = 20
+    args = (np.zeros(n), np.full(n, -u), np.zeros(n), np.full(n, alpha))
+    _, _, ex = _run(*args, p=FrictionParams(persist_s=0.05))
+    assert np.all(ex[:10] == 0.0) and np.all(ex[10:] == 1.0)
+    _, _, ex = _run(*args, p=FrictionParams(u_min=0.35))
+    assert np.all(ex == 0.0)

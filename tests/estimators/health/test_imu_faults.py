@@ -14,6 +14,7 @@ import pandas as pd
 import pytest
 
 from vestim.estimators.health.imu import (
+    ImuHealthKernelParams,
     ImuHealthParams,
     imu_health_kernel,
     imu_health_params,
@@ -57,7 +58,7 @@ def _arrays(name: str) -> tuple[np.ndarray, ...]:
             np.ascontiguousarray(df[OMEGAS].to_numpy(float)), delta)
 
 
-def _prm(name: str, p: ImuHealthParams | None = None) -> np.ndarray:
+def _prm(name: str, p: ImuHealthParams | None = None) -> ImuHealthKernelParams:
     b = _log(name)[1].body
     return imu_health_params(p or ImuHealthParams(), b.wheel_radius, b.track_f, b.track_r, b.lf)
 
@@ -68,7 +69,7 @@ def _run(name: str, t: np.ndarray, ax: np.ndarray, ay: np.ndarray, r: np.ndarray
     n = t.shape[0]
     out = np.empty((3, n))
     health = np.empty((n, 3))
-    imu_health_kernel(t, ax, ay, r, omega, delta, _prm(name, p), new_imu_state(), out[0],
+    imu_health_kernel(_prm(name, p), new_imu_state(), t, ax, ay, r, omega, delta, out[0],
                       out[1], out[2], health)
     return out, health
 
@@ -109,7 +110,7 @@ def test_whole_log_equals_sample_by_sample():
     h = np.empty((t.shape[0], 3))
     for k in range(t.shape[0]):
         s = slice(k, k + 1)
-        imu_health_kernel(t[s], ax[s], ay[s], r[s], om[s], de[s], prm, st, o[0, s], o[1, s],
+        imu_health_kernel(prm, st, t[s], ax[s], ay[s], r[s], om[s], de[s], o[0, s], o[1, s],
                           o[2, s], h[s])
     assert np.any(health[:, 2] == 0.0)
     np.testing.assert_array_equal(o, out)

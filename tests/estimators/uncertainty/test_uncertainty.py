@@ -14,7 +14,7 @@ from __future__ import annotations
 
 import itertools
 import json
-from dataclasses import replace
+from dataclasses import fields, replace
 from functools import cache
 from pathlib import Path
 
@@ -30,6 +30,7 @@ from vestim.estimators.uncertainty import (
     CALIBRATION_RUNS,
     N_OUT,
     OUTPUT_NAMES,
+    UncertaintyKernelParams,
     UncertaintyParams,
     new_state,
     uncertainty,
@@ -226,11 +227,11 @@ def test_chunked_equals_sample_by_sample() -> None:
     args = _arrays(est, log)
     prm = uncertainty_params(VEH)
     whole = np.empty((len(log), N_OUT))
-    uncertainty_kernel(*args, prm, new_state(), whole)
+    uncertainty_kernel(prm, new_state(), *args, whole)
     state = new_state()
     row = np.empty((1, N_OUT))
     for k in range(len(log)):
-        uncertainty_kernel(*(a[k:k + 1] for a in args), prm, state, row)
+        uncertainty_kernel(prm, state, *(a[k:k + 1] for a in args), row)
         if k % 7 == 0:
             assert np.array_equal(row[0], whole[k], equal_nan=True), k
 
@@ -250,10 +251,10 @@ def test_wheel_noise_estimate() -> None:
     out = np.empty((n, N_OUT))
     z4 = np.zeros((n, 4))
     v = np.column_stack((0.33 * om[:, 0], np.zeros(n)))
-    uncertainty_kernel(t, v, np.full((n, 2), 0.05), z4, om, np.zeros(n),
-                       np.zeros(n), np.full((n, 4), 5000.0), 0.33 * om, z4, z4,
-                       np.full(n, 10.0), uncertainty_params(VEH, p), state, out)
-    assert np.sqrt(state[8:12]) == pytest.approx(np.full(4, 0.3), rel=0.05)
+    uncertainty_kernel(uncertainty_params(VEH, p), state, t, v, np.full((n, 2), 0.05), z4, om,
+                       np.zeros(n), np.zeros(n), np.full((n, 4), 5000.0), 0.33 * om, z4, z4,
+                       np.full(n, 10.0), out)
+    assert np.sqrt(state.noise_var) == pytest.approx(np.full(4, 0.3), rel=0.05)
 
 
 def test_bad_shapes_raise() -> None:
@@ -299,7 +300,7 @@ def test_pipeline_outputs_the_kernels_sigma() -> None:
     run() and in step() (its compiled path)."""
     log, est = _sim_run("hashemi_suv", "dlc_snow", 1)
     out = np.empty((len(log), N_OUT))
-    uncertainty_kernel(*_arrays(est, log), uncertainty_params(VEH), new_state(), out)
+    uncertainty_kernel(uncertainty_params(VEH), new_state(), *_arrays(est, log), out)
     meas = log[[c for c in log.columns if not c.startswith("ref_")]]
     default = Pipeline(VEH).run(meas)
     for j, name in enumerate(OUTPUT_NAMES):
@@ -326,7 +327,7 @@ def _pooled(runs: list[tuple[pd.DataFrame, pd.DataFrame, Vehicle]]) -> dict[str,
     hits: dict[str, list[float]] = {f: [0.0, 0.0, 0.0] for f in FAMILIES}
     for log, est, veh in runs:
         out = np.empty((len(log), N_OUT))
-        uncertainty_kernel(*_arrays(est, log), uncertainty_params(veh), new_state(), out)
+        uncertainty_kernel(uncertainty_params(veh), new_state(), *_arrays(est, log), out)
         for j, name in enumerate(OUTPUT_NAMES):
             ch = name.removeprefix("sigma_")
             fam = ch[:-3] + "_*" if ch[-3:] in {f"_{c}" for c in CORNERS} else ch
@@ -438,3 +439,25 @@ def test_normal_load_coverage_on_drawn_plants() -> None:
             runs.append((log, _run(log, nom), nom))
     c = _pooled(runs)["fz_*"]
     assert _in_band(c), f"fz_*: {100 * c[0]:.1f} / {100 * c[1]:.1f} %"
+
+
+def test_params_are_packed_from_the_config_and_the_vehicle() -> None:
+    """Every :class:`UncertaintyParams` field (non-default values) and the vehicle's corner
+    positions reach the kernel's parameters by name; a changed σ_az reaches the kernel: at
+    a_x = a_y = 0 the other terms of σ_Fz do not depend on it, so σ_Fz² grows by exactly
+    (m/4)² (0.2² − 0.05²)."""
+    cfg = UncertaintyParams(**{f.name: 0.5 + 0.01 * i
+                               for i, f in enumerate(fields(UncertaintyParams))})
+    prm = uncertainty_params(VEH, cfg)
+    assert isinstance(prm, UncertaintyKernelParams)
+    for f in fields(UncertaintyParams):
+        assert getattr(prm, f.name) == getattr(cfg, f.name), f.name
+    xw, yw = kin.corner_positions(VEH)
+    assert (prm.x_fl, prm.x_rr, prm.y_fr, prm.y_rl) == (xw[0], xw[3], yw[1], yw[2])
+    assert prm.wheel_radius == VEH.body.wheel_radius
+    base = _one(15.0, 0.0, 0.0, 0.0, 15.0 / VEH.body.wheel_radius)["sigma_fz_fl"]
+    more = _one(15.0, 0.0, 0.0, 0.0, 15.0 / VEH.body.wheel_radius,
+                params=replace(PURE, sigma_az=0.2))["sigma_fz_fl"]
+    assert PURE.sigma_az == 0.05
+    assert more**2 - base**2 == pytest.approx((VEH.body.mass / 4) ** 2 * (0.2**2 - 0.05**2),
+                                              rel=1e-9)

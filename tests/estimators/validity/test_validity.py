@@ -3,6 +3,8 @@ and step() alike."""
 
 from __future__ import annotations
 
+from dataclasses import fields
+
 import numpy as np
 import pytest
 
@@ -13,8 +15,10 @@ from vestim.estimators.validity import (
     REVERSE,
     STANDSTILL,
     UNOBSERVABLE,
+    ValidityKernelParams,
     ValidityParams,
     validity,
+    validity_params,
 )
 
 
@@ -72,3 +76,20 @@ def test_pipeline_writes_the_flags_and_step_matches_run():
     rows = [pipe.step(s) for s in log.to_dict("records")]
     for k in ("valid_velocity", "reason_velocity", "reason_force", "valid_slip"):
         np.testing.assert_array_equal([r[k] for r in rows], est[k].to_numpy())
+
+
+def test_params_are_packed_from_the_config_and_reach_the_kernel() -> None:
+    """Every :class:`ValidityKernelParams` field is the config's (non-default values), and a
+    changed threshold moves the flag: v_x = 0.8 m/s is moving with the default
+    standstill_speed 0.5 m/s and standstill with 1.0 m/s (bit 2 in the slip group)."""
+    cfg = ValidityParams(converge_s=3.0, standstill_speed=1.0, high_slip_ratio=0.2,
+                         high_slip_angle=0.1, straight_delta=0.01, straight_ay=0.4)
+    prm = validity_params(cfg)
+    assert isinstance(prm, ValidityKernelParams)
+    for f in fields(ValidityParams):
+        assert getattr(prm, f.name) == getattr(cfg, f.name), f.name
+    one = lambda v: np.array([v], dtype=float)  # noqa: E731
+    args = (one(5.0), 0.0, one(0.8), np.zeros((1, 4)), np.zeros((1, 4)), np.full((1, 2), 0.05),
+            one(2.0), np.array([False]))
+    assert validity(*args, ValidityParams())["reason_slip"][0] == 0.0
+    assert validity(*args, ValidityParams(standstill_speed=1.0))["reason_slip"][0] == STANDSTILL

@@ -2,14 +2,22 @@
 
 from __future__ import annotations
 
-from dataclasses import replace
+from dataclasses import fields, replace
+from typing import Any
 
 import numpy as np
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from vestim.estimators.velocity.reference import ReferenceFilter, ReferenceParams
+from vestim.estimators.velocity.reference import (
+    ReferenceFilter,
+    ReferenceKernelParams,
+    ReferenceParams,
+    StiffnessParams,
+    reference_params,
+    stiffness_params,
+)
 
 R = 0.37
 XW = np.array([1.4, 1.4, -1.6, -1.6])
@@ -35,7 +43,7 @@ def _run(inp: dict[str, np.ndarray], params: ReferenceParams | None = None,
     for idx in np.array_split(np.arange(inp["t"].shape[0]), chunks):
         parts.append(filt.advance(**{k: np.ascontiguousarray(v[idx]) for k, v in inp.items()}))
     out = {k: np.concatenate([p[k] for p in parts]) for k in parts[0]}
-    out["P"] = filt._P.copy()
+    out["P"] = filt.state.P.copy()
     return out
 
 
@@ -138,8 +146,61 @@ def test_covariance_stays_symmetric_positive_definite(seed: int, speed: float, s
                      np.nan) if with_corner else None
     var = np.full((n, 1), 9.0) if with_corner else None
     out = filt.advance(**inp, extra_v=extra, extra_var=var)
-    P = filt._P
+    P = filt.state.P
     assert np.all(np.isfinite(out["v"])) and np.all(np.isfinite(P))
     np.testing.assert_allclose(P, P.T, atol=1e-12)
     assert np.linalg.eigvalsh(P).min() > 0.0
     assert np.all(P[np.ix_([0, 2], [1, 3, 4])] == 0.0)
+
+
+def test_kernel_params_take_every_tuning_field_from_the_config() -> None:
+    # Every ReferenceParams field reaches the kernel by name but four: window (the rows of
+    # the ω history, the state's shape), q_vx_speed (the speed mode's q_vx), sigma_gnss
+    # and sigma_vehicle_speed (the pipeline's extra measurements). Each field gets its own
+    # value (index + 0.5) so that a field packed from another one would show.
+    values: dict[str, Any] = {f.name: i + 0.5 for i, f in enumerate(fields(ReferenceParams))
+                              if f.name != "window"}
+    cfg = ReferenceParams(**values)
+    kp = reference_params(cfg, R, 1.4, 1.6, XW, YW)
+    tuning = {f.name for f in fields(ReferenceParams)}
+    assert tuning - set(ReferenceKernelParams._fields) == {
+        "window", "q_vx_speed", "sigma_gnss", "sigma_vehicle_speed"}
+    for name in tuning & set(kp._fields):
+        assert getattr(kp, name) == getattr(cfg, name), name
+        assert type(getattr(kp, name)) is float, name  # one Numba type for every config
+    assert kp.kin_fx is False
+    assert (kp.radius, kp.lf, kp.lr) == (R, 1.4, 1.6)
+    speed = reference_params(cfg, R, 1.4, 1.6, XW, YW, fx_from_speed=True)
+    assert speed.kin_fx is True
+    assert speed.q_vx == cfg.q_vx_speed
+    assert speed.slip_sign == np.inf
+    back = speed._replace(kin_fx=False, q_vx=cfg.q_vx, slip_sign=cfg.slip_sign)
+    assert back[:-2] == kp[:-2]  # all but the arrays xw, yw
+
+
+def test_a_changed_gate_reaches_the_kernel() -> None:
+    # Free rolling at 20 m/s with the rr wheel reading 1.5 m/s high: its innovation is
+    # 1.5 m/s against σ = √(r_wheel) = 0.22 m/s, i.e. 6.7σ. At the default gate (5σ) it is
+    # rejected in every sample and v_x stays at 20 m/s (within 1e-5 m/s); at twice the
+    # gate it is accepted with the others' weight and v_x reads their mean, 20.375 m/s.
+    n = int(10 * FS)
+    inp = _inputs(np.full(n, 20.0), np.zeros(n), np.zeros(n), np.zeros(n), np.zeros((n, 2)))
+    inp["omega"][:, 3] += 1.5 / R
+    p = ReferenceParams()
+    tight, wide = _run(inp, p), _run(inp, replace(p, gate=2.0 * p.gate))
+    assert np.all(np.isinf(tight["trust"][:, 3]))
+    assert np.all(np.isfinite(wide["trust"][:, 3]))
+    assert np.abs(tight["v"][-200:, 0] - 20.0).max() < 1e-5
+    assert np.abs(wide["v"][-200:, 0] - 20.375).max() < 1e-3
+
+
+def test_stiffness_params_derive_the_prior_from_c0() -> None:
+    # c₀ = 15 /rad: prior compliance 1/15 rad and weight (σ_κ c₀/prior_sd)² =
+    # (0.01·15/0.3)² = 0.25; the other fields are the config's.
+    cfg = StiffnessParams()
+    kp = stiffness_params(15.0, cfg, R, 3.0)
+    assert kp.w0 == pytest.approx(1.0 / 15.0)
+    assert kp.prior_weight == pytest.approx(0.25)
+    for name in set(kp._fields) - {"w0", "prior_weight", "radius", "wheelbase"}:
+        assert getattr(kp, name) == getattr(cfg, name), name
+    assert (kp.radius, kp.wheelbase) == (R, 3.0)

@@ -22,7 +22,12 @@ from scipy.signal import butter, filtfilt
 
 from vestim.constants import CORNERS, G
 from vestim.errors import LogFormatError
-from vestim.estimators.velocity.reference import RadiusParams, gnss_calibration, radius_params
+from vestim.estimators.velocity.reference import (
+    RadiusParams,
+    gnss_calibration,
+    new_radius_state,
+    radius_params,
+)
 from vestim.io.calibration import Identified
 from vestim.io.channel_map import (
     AUTO_STEADY_DOMEGA,
@@ -314,14 +319,14 @@ def _gnss_scale(logs: Sequence[_Log], vehicle: Vehicle, ratio: np.ndarray
         if int(use.sum()) < 20:
             continue
         n = len(lg.t)
-        state = np.zeros(9)
+        st = new_radius_state()
         out_s, out_l, out_v = np.empty(n), np.empty(n), np.empty(n)
-        gnss_calibration(lg.t, np.ascontiguousarray(om), g, prm, state, out_s, out_l, out_v)
+        gnss_calibration(prm, st, lg.t, np.ascontiguousarray(om), g, out_s, out_l, out_v)
         s, lat = float(out_s[-1]), float(out_l[-1])
         res = out_v[use] - s * v_w[use]
         # covariance of (s, c = s·L) from the fit's normal equations [Σvv, −Σva; −Σva, Σaa]:
         # while the speed changes at a steady rate the latency and the scale trade off
-        m = np.array([[state[0], -state[1]], [-state[1], state[2]]])
+        m = np.array([[st.s_vv[0], -st.s_va[0]], [-st.s_va[0], st.s_aa[0]]])
         s2 = float(np.var(res, ddof=2)) * _ar1_factor(res) ** 2
         cov = np.linalg.pinv(m) * s2
         sig_s = math.sqrt(max(float(cov[0, 0]), 0.0))

@@ -47,14 +47,14 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from typing import Any
+from typing import Any, NamedTuple
 
 import numpy as np
 from numba import njit
 
 from vestim.constants import G
 from vestim.io.vehicle import Vehicle
-from vestim.params import check_ranges
+from vestim.params import check_ranges, pack
 
 _JIT: dict[str, Any] = {"cache": True, "error_model": "numpy"}
 
@@ -87,10 +87,43 @@ class FrictionParams:
             raise ValueError(f"friction persist_s = {self.persist_s} must be >= 0")
 
 
-def friction_params(p: FrictionParams) -> np.ndarray:
-    """Pack :class:`FrictionParams` for :func:`friction_kernel` (order of the fields)."""
-    return np.array([p.shape_lateral, p.shape_longitudinal, p.sigma_k, p.sigma_slip_ratio,
-                     p.sigma_slip_angle, p.excess_sigmas, p.sigma_max, p.u_min, p.persist_s])
+class FrictionKernelParams(NamedTuple):
+    """:func:`friction_step`'s parameters: the :class:`FrictionParams` fields the kernel
+    reads (units in the module docstring) and the longitudinal slip stiffness per unit load
+    of each corner, ``kx_fl`` … ``kx_rr`` (per unit slip ratio, :func:`corner_kx`)."""
+
+    shape_lateral: float
+    shape_longitudinal: float
+    sigma_k: float
+    sigma_slip_ratio: float
+    sigma_slip_angle: float
+    excess_sigmas: float
+    sigma_max: float
+    u_min: float
+    persist_s: float
+    sigma_vy_floor: float
+    kx_fl: float
+    kx_fr: float
+    kx_rl: float
+    kx_rr: float
+
+
+class FrictionState(NamedTuple):
+    """:func:`friction_step`'s state: ``since`` (4,) per corner, the time since which the
+    excitation test has held (s; NaN: it does not hold)."""
+
+    since: np.ndarray
+
+
+def friction_params(p: FrictionParams, kx: np.ndarray) -> FrictionKernelParams:
+    """:func:`friction_step`'s parameters from the validated ``p`` and the corners'
+    longitudinal slip stiffness per unit load ``kx`` (4,) (:func:`corner_kx`)."""
+    return pack(FrictionKernelParams, p, kx_fl=kx[0], kx_fr=kx[1], kx_rl=kx[2], kx_rr=kx[3])
+
+
+def new_friction_state() -> FrictionState:
+    """A fresh :class:`FrictionState` (no corner excited)."""
+    return FrictionState(np.full(4, np.nan))
 
 
 def corner_kx(vehicle: Vehicle, params: FrictionParams) -> np.ndarray:
@@ -144,76 +177,84 @@ def invert_shape(q: float, c: float) -> float:
     return 0.5 * (lo + hi)
 
 
-@njit(**_JIT)
-def friction_kernel(t: np.ndarray, fx: np.ndarray, fy: np.ndarray, fz: np.ndarray,
-                    sigma_fx: np.ndarray, sigma_fy: np.ndarray, slip_ratio: np.ndarray,
-                    slip_angle: np.ndarray, sigma_alpha: np.ndarray, ky: np.ndarray,
-                    kx: np.ndarray, prm: np.ndarray, state: np.ndarray, mu: np.ndarray,
-                    sigma_mu: np.ndarray, excited: np.ndarray) -> None:
-    """Friction potential per corner over a block of samples (causal; ``state`` carries on).
+@njit(**_JIT, inline="always")
+def friction_step(p: FrictionKernelParams, s: FrictionState, t: float, fx: np.ndarray,
+                  fy: np.ndarray, fz: np.ndarray, sigma_fx: np.ndarray, sigma_fy: np.ndarray,
+                  slip_ratio: np.ndarray, slip_angle: np.ndarray, sigma_alpha: float,
+                  ky: float, mu: np.ndarray, sigma_mu: np.ndarray, excited: np.ndarray) -> None:
+    """Friction potential per corner of one sample at time ``t`` (s); ``s`` is advanced.
 
     Args:
-        t: sample times (n,), s.
-        fx, fy, fz: tire forces (n, 4), N, tire frame; u = ‖(F_x, F_y)‖ / max(F_z, 1 N).
-        sigma_fx, sigma_fy: their one-σ (n, 4), N (NaN: none, and no sample is excited).
-        slip_ratio, slip_angle: estimated slips (n, 4), – and rad (spec signs).
-        sigma_alpha: one-σ of the slip angles (n,), rad, beyond ``sigma_slip_angle`` (the
+        fx, fy, fz: tire forces (4,), N, tire frame; u = ‖(F_x, F_y)‖ / max(F_z, 1 N).
+        sigma_fx, sigma_fy: their one-σ (4,), N (NaN: none, and the sample is not excited).
+        slip_ratio, slip_angle: estimated slips (4,), – and rad (spec signs).
+        sigma_alpha: one-σ of the slip angles, rad, beyond ``sigma_slip_angle`` (the
             velocity filter's σ_vy / v_x; 0 when it has none).
-        ky: normalised cornering stiffness (n,), 1/rad; kx: normalised longitudinal slip
-            stiffness per corner (4,), per unit slip ratio.
-        prm: :func:`friction_params`.
-        state: (4,) per corner, the time since which the excitation test has held (NaN: it
-            does not hold); reset to NaN.
-        mu, sigma_mu, excited: outputs (n, 4), written; μ and σ are NaN where not excited.
+        ky: normalised cornering stiffness, 1/rad.
+        mu, sigma_mu, excited: outputs (4,), written; μ and σ are NaN where not excited.
     """
-    c_lat, c_lon, s_k, s_s, s_a, n_sig, s_max, u_min, persist = (
-        prm[0], prm[1], prm[2], prm[3], prm[4], prm[5], prm[6], prm[7], prm[8])
     eps = 1.01
+    s_a = p.sigma_slip_angle
+    var_a = s_a * s_a + sigma_alpha * sigma_alpha
+    for c in range(4):
+        kx = p.kx_fl if c == 0 else p.kx_fr if c == 1 else p.kx_rl if c == 2 else p.kx_rr
+        load = max(fz[c], 1.0)
+        u = math.hypot(fx[c], fy[c]) / load
+        su = math.hypot(sigma_fx[c], sigma_fy[c]) / load
+        sr = slip_ratio[c]
+        scale = 1.0 / (1.0 + abs(sr))
+        lx = kx * sr * scale
+        ly = ky * math.tan(slip_angle[c]) * scale
+        lin = math.hypot(lx, ly)
+        w = ly * ly / (lin * lin) if lin > 1e-12 else 0.0
+        shape = p.shape_lateral * w + p.shape_longitudinal * (1.0 - w)
+        var_lin = ((p.sigma_k * lin) ** 2 + (kx * p.sigma_slip_ratio) ** 2 * (1.0 - w)
+                   + ky ** 2 * var_a * w)
+        ok = u >= p.u_min and lin - u >= p.excess_sigmas * math.sqrt(var_lin)
+        m, sm = np.nan, np.nan
+        if ok:
+            q = lin / u
+            y = invert_shape(q, shape)
+            dlny = math.log(invert_shape(q * eps, shape) / y) / math.log(eps)
+            rel_u = su / u
+            rel_q2 = var_lin / (lin * lin) + rel_u * rel_u
+            m = u / y
+            sm = m * math.sqrt(dlny * dlny * rel_q2 + rel_u * rel_u)
+            ok = sm <= p.sigma_max
+        if ok:
+            if math.isnan(s.since[c]):
+                s.since[c] = t
+            ok = t - s.since[c] >= p.persist_s - 1e-9
+        else:
+            s.since[c] = np.nan
+        if ok:
+            mu[c], sigma_mu[c], excited[c] = m, sm, 1.0
+        else:
+            mu[c], sigma_mu[c], excited[c] = np.nan, np.nan, 0.0
+
+
+@njit(**_JIT)
+def friction_kernel(p: FrictionKernelParams, s: FrictionState, t: np.ndarray, fx: np.ndarray,
+                    fy: np.ndarray, fz: np.ndarray, sigma_fx: np.ndarray, sigma_fy: np.ndarray,
+                    slip_ratio: np.ndarray, slip_angle: np.ndarray, sigma_alpha: np.ndarray,
+                    ky: np.ndarray, mu: np.ndarray, sigma_mu: np.ndarray,
+                    excited: np.ndarray) -> None:
+    """:func:`friction_step` over a block of samples (causal; ``s`` carries on): ``t`` (s),
+    ``sigma_alpha`` (rad) and ``ky`` (1/rad) (n,), the per-corner inputs and the outputs
+    (n, 4), C-contiguous; units as there."""
     for k in range(t.shape[0]):
-        for c in range(4):
-            load = max(fz[k, c], 1.0)
-            u = math.hypot(fx[k, c], fy[k, c]) / load
-            su = math.hypot(sigma_fx[k, c], sigma_fy[k, c]) / load
-            s = slip_ratio[k, c]
-            scale = 1.0 / (1.0 + abs(s))
-            lx = kx[c] * s * scale
-            ly = ky[k] * math.tan(slip_angle[k, c]) * scale
-            lin = math.hypot(lx, ly)
-            w = ly * ly / (lin * lin) if lin > 1e-12 else 0.0
-            shape = c_lat * w + c_lon * (1.0 - w)
-            var_a = s_a * s_a + sigma_alpha[k] * sigma_alpha[k]
-            var_lin = (s_k * lin) ** 2 + (kx[c] * s_s) ** 2 * (1.0 - w) + ky[k] ** 2 * var_a * w
-            ok = u >= u_min and lin - u >= n_sig * math.sqrt(var_lin)
-            m, sm = np.nan, np.nan
-            if ok:
-                q = lin / u
-                y = invert_shape(q, shape)
-                dlny = math.log(invert_shape(q * eps, shape) / y) / math.log(eps)
-                rel_u = su / u
-                rel_q2 = var_lin / (lin * lin) + rel_u * rel_u
-                m = u / y
-                sm = m * math.sqrt(dlny * dlny * rel_q2 + rel_u * rel_u)
-                ok = sm <= s_max
-            if ok:
-                if math.isnan(state[c]):
-                    state[c] = t[k]
-                ok = t[k] - state[c] >= persist - 1e-9
-            else:
-                state[c] = np.nan
-            if ok:
-                mu[k, c], sigma_mu[k, c], excited[k, c] = m, sm, 1.0
-            else:
-                mu[k, c], sigma_mu[k, c], excited[k, c] = np.nan, np.nan, 0.0
+        friction_step(p, s, t[k], fx[k], fy[k], fz[k], sigma_fx[k], sigma_fy[k],
+                      slip_ratio[k], slip_angle[k], sigma_alpha[k], ky[k], mu[k],
+                      sigma_mu[k], excited[k])
 
 
-
-
-def friction_potential(t: np.ndarray, fx: np.ndarray, fy: np.ndarray, fz: np.ndarray,
-                       sigma_fx: np.ndarray, sigma_fy: np.ndarray, slip_ratio: np.ndarray,
-                       slip_angle: np.ndarray, sigma_alpha: np.ndarray, ky: np.ndarray,
-                       kx: np.ndarray, prm: np.ndarray,
-                       state: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """:func:`friction_kernel` on the force and velocity stages' arrays, outputs allocated.
+def friction_potential(p: FrictionKernelParams, s: FrictionState, t: np.ndarray,
+                       fx: np.ndarray, fy: np.ndarray, fz: np.ndarray, sigma_fx: np.ndarray,
+                       sigma_fy: np.ndarray, slip_ratio: np.ndarray, slip_angle: np.ndarray,
+                       sigma_alpha: np.ndarray,
+                       ky: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """:func:`friction_kernel` on the force and velocity stages' arrays, outputs allocated;
+    ``s`` is advanced.
 
     ``sigma_alpha``: (n,) rad, the velocity filter's slip-angle σ (NaN is taken as 0).
 
@@ -223,10 +264,10 @@ def friction_potential(t: np.ndarray, fx: np.ndarray, fy: np.ndarray, fz: np.nda
     n = t.shape[0]
     mu, smu, ex = np.empty((n, 4)), np.empty((n, 4)), np.empty((n, 4))
     c = np.ascontiguousarray
-    friction_kernel(c(t, dtype=np.float64), c(fx, dtype=np.float64), c(fy, dtype=np.float64),
-                    c(fz, dtype=np.float64), c(sigma_fx, dtype=np.float64),
-                    c(sigma_fy, dtype=np.float64), c(slip_ratio, dtype=np.float64),
-                    c(slip_angle, dtype=np.float64),
+    friction_kernel(p, s, c(t, dtype=np.float64), c(fx, dtype=np.float64),
+                    c(fy, dtype=np.float64), c(fz, dtype=np.float64),
+                    c(sigma_fx, dtype=np.float64), c(sigma_fy, dtype=np.float64),
+                    c(slip_ratio, dtype=np.float64), c(slip_angle, dtype=np.float64),
                     c(np.nan_to_num(sigma_alpha, nan=0.0), dtype=np.float64),
-                    c(ky, dtype=np.float64), kx, prm, state, mu, smu, ex)
+                    c(ky, dtype=np.float64), mu, smu, ex)
     return mu, smu, ex

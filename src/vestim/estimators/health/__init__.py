@@ -24,15 +24,19 @@ faulty" bit.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import NamedTuple
 
 import numpy as np
 from numba import njit
 
+from vestim.estimators.health.imu import ImuHealthKernelParams as ImuHealthKernelParams
 from vestim.estimators.health.imu import ImuHealthParams as ImuHealthParams
+from vestim.estimators.health.imu import ImuHealthState as ImuHealthState
 from vestim.estimators.health.imu import imu_health_kernel as imu_health_kernel
 from vestim.estimators.health.imu import imu_health_params as imu_health_params
+from vestim.estimators.health.imu import imu_health_step as imu_health_step
 from vestim.estimators.health.imu import new_imu_state as new_imu_state
-from vestim.params import check_ranges
+from vestim.params import check_ranges, pack
 
 
 @dataclass(frozen=True)
@@ -53,70 +57,106 @@ class HealthParams:
                      nonnegative=("hold_s",))
 
 
-def health_params(p: HealthParams, radius: float) -> np.ndarray:
-    """Pack for :func:`wheel_health_kernel`; ``radius`` (m) turns accelerations into rad/s²."""
-    return np.array([p.max_wheel_acc / radius, p.dropout_speed, p.min_speed, p.hold_s,
-                     p.stuck_s, p.stuck_motion, p.noise])
+class HealthKernelParams(NamedTuple):
+    """:func:`wheel_health_step`'s parameters: the :class:`HealthParams` fields (SI) and
+    ``max_wheel_rate``, the spike bound ``max_wheel_acc`` / wheel radius (rad/s²)."""
+
+    max_wheel_rate: float
+    dropout_speed: float
+    min_speed: float
+    hold_s: float
+    stuck_s: float
+    stuck_motion: float
+    noise: float
 
 
-def new_state() -> np.ndarray:
-    """Kernel state, per wheel: last raw value, time it last changed, the others' median
-    then, time the dropout began (NaN: none), last healthy value and its time."""
-    return np.full((4, 6), np.nan)
+class HealthState(NamedTuple):
+    """:func:`wheel_health_step`'s state, one entry per wheel (fl, fr, rl, rr), NaN: none
+    yet. ``last_raw`` the last reading (rad/s), ``t_changed`` when it last changed (s),
+    ``median_then`` the other wheels' median then (rad/s), ``t_dropout`` when the present
+    dropout began (s; NaN: none), ``last_healthy`` the last healthy reading (rad/s) and
+    ``t_healthy`` its time (s)."""
+
+    last_raw: np.ndarray
+    t_changed: np.ndarray
+    median_then: np.ndarray
+    t_dropout: np.ndarray
+    last_healthy: np.ndarray
+    t_healthy: np.ndarray
 
 
-@njit(cache=True)
+def health_params(p: HealthParams, radius: float) -> HealthKernelParams:
+    """:func:`wheel_health_step`'s parameters from the validated ``p``; ``radius`` (m, the
+    vehicle's wheel radius) turns the spike bound into rad/s²."""
+    return pack(HealthKernelParams, p, max_wheel_rate=p.max_wheel_acc / radius)
+
+
+def new_state() -> HealthState:
+    """A fresh :class:`HealthState` (every entry NaN: nothing seen yet)."""
+    return HealthState(*(np.full(4, np.nan) for _ in HealthState._fields))
+
+
+@njit(cache=True, error_model="numpy")
 def _median3(a: float, b: float, c: float) -> float:
     return max(min(a, b), min(max(a, b), c))
 
 
-@njit(cache=True)
-def wheel_health_kernel(t: np.ndarray, omega: np.ndarray, prm: np.ndarray, state: np.ndarray,
-                        out: np.ndarray, health: np.ndarray) -> None:
-    """Health of each wheel speed over a block of samples; ``out`` gets the wheel speeds with
-    the faulty ones replaced, ``health`` 1.0 (healthy) or 0.0 (left out). NaN readings (a log
-    without wheel speeds) pass through untouched."""
-    acc, drop, vmin, hold, stuck_s, motion, noise = (prm[0], prm[1], prm[2], prm[3], prm[4],
-                                                     prm[5], prm[6])
+@njit(cache=True, error_model="numpy", inline="always")
+def wheel_health_step(p: HealthKernelParams, s: HealthState, t: float, w: np.ndarray,
+                      out: np.ndarray, health: np.ndarray) -> None:
+    """Health of the four wheel speeds ``w`` (4,) rad/s (fl, fr, rl, rr) of one sample at
+    time ``t`` (s); ``out`` (4,) gets them with the faulty ones replaced, ``health`` (4,)
+    1.0 (healthy) or 0.0 (left out); ``s`` is advanced. A NaN reading (a log without wheel
+    speeds) passes through untouched."""
+    last_raw, t_changed, median_then = s.last_raw, s.t_changed, s.median_then
+    t_dropout, last_healthy, t_healthy = s.t_dropout, s.last_healthy, s.t_healthy
+    bad = np.zeros(4, dtype=np.bool_)
+    for i in range(4):
+        out[i] = w[i]
+        health[i] = 1.0
+        if np.isnan(w[i]):
+            continue
+        a, b, c = (w[1], w[2], w[3]) if i == 0 else (w[0], w[2], w[3]) if i == 1 else (
+            (w[0], w[1], w[3]) if i == 2 else (w[0], w[1], w[2]))
+        m = _median3(a, b, c)
+        fault = False
+        if not np.isnan(last_healthy[i]):  # spike: out of reach of the last healthy value
+            fault = (abs(w[i] - last_healthy[i])
+                     > p.max_wheel_rate * (t - t_healthy[i]) + p.noise)
+        if not np.isnan(m) and m > p.min_speed and abs(w[i]) < p.dropout_speed:  # dropout
+            if np.isnan(t_dropout[i]):
+                t_dropout[i] = t
+            fault = fault or t - t_dropout[i] >= p.hold_s
+        else:
+            t_dropout[i] = np.nan
+        if np.isnan(last_raw[i]) or w[i] != last_raw[i]:  # stuck: frozen, others move
+            last_raw[i], t_changed[i], median_then[i] = w[i], t, m
+        elif t - t_changed[i] >= p.stuck_s and abs(m - median_then[i]) > p.stuck_motion:
+            fault = True
+        bad[i] = fault
+        if not fault:
+            last_healthy[i], t_healthy[i] = w[i], t
+    for i in range(4):
+        if not bad[i]:
+            continue
+        mate = i + 1 if i % 2 == 0 else i - 1
+        if not bad[mate] and not np.isnan(w[mate]):
+            out[i] = w[mate]
+        else:
+            total, n = 0.0, 0
+            for j in range(4):
+                if not bad[j] and not np.isnan(w[j]):
+                    total += w[j]
+                    n += 1
+            if n > 0:
+                out[i] = total / n
+        health[i] = 0.0
+
+
+@njit(cache=True, error_model="numpy")
+def wheel_health_kernel(p: HealthKernelParams, s: HealthState, t: np.ndarray,
+                        omega: np.ndarray, out: np.ndarray, health: np.ndarray) -> None:
+    """:func:`wheel_health_step` over a block of samples: ``t`` (n,) s, ``omega``, ``out``
+    and ``health`` (n, 4), C-contiguous; ``s`` carries on from block to block."""
     for k in range(t.shape[0]):
-        w = omega[k]
-        bad = np.zeros(4, dtype=np.bool_)
-        for i in range(4):
-            out[k, i] = w[i]
-            health[k, i] = 1.0
-            if np.isnan(w[i]):
-                continue
-            a, b, c = (w[1], w[2], w[3]) if i == 0 else (w[0], w[2], w[3]) if i == 1 else (
-                (w[0], w[1], w[3]) if i == 2 else (w[0], w[1], w[2]))
-            m = _median3(a, b, c)
-            fault = False
-            if not np.isnan(state[i, 4]):  # spike: out of reach of the last healthy value
-                fault = abs(w[i] - state[i, 4]) > acc * (t[k] - state[i, 5]) + noise
-            if not np.isnan(m) and m > vmin and abs(w[i]) < drop:  # dropout, held
-                if np.isnan(state[i, 3]):
-                    state[i, 3] = t[k]
-                fault = fault or t[k] - state[i, 3] >= hold
-            else:
-                state[i, 3] = np.nan
-            if np.isnan(state[i, 0]) or w[i] != state[i, 0]:  # stuck: frozen while others move
-                state[i, 0], state[i, 1], state[i, 2] = w[i], t[k], m
-            elif t[k] - state[i, 1] >= stuck_s and abs(m - state[i, 2]) > motion:
-                fault = True
-            bad[i] = fault
-            if not fault:
-                state[i, 4], state[i, 5] = w[i], t[k]
-        for i in range(4):
-            if not bad[i]:
-                continue
-            mate = i + 1 if i % 2 == 0 else i - 1
-            if not bad[mate] and not np.isnan(w[mate]):
-                out[k, i] = w[mate]
-            else:
-                s, n = 0.0, 0
-                for j in range(4):
-                    if not bad[j] and not np.isnan(w[j]):
-                        s += w[j]
-                        n += 1
-                if n > 0:
-                    out[k, i] = s / n
-            health[k, i] = 0.0
+        wheel_health_step(p, s, t[k], omega[k], out[k], health[k])

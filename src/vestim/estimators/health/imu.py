@@ -42,14 +42,12 @@ restarts the filters (the largest magnitudes seen are kept).
 from __future__ import annotations
 
 from dataclasses import dataclass, fields
+from typing import NamedTuple
 
 import numpy as np
 from numba import njit
 
-from vestim.params import check_ranges
-
-#: state rows: one per channel (ax, ay, yaw_rate), then the shared row
-N_STATE = 18
+from vestim.params import check_ranges, pack
 
 
 @dataclass(frozen=True)
@@ -138,220 +136,302 @@ class ImuHealthParams:
             raise ValueError(f"IMU health sat_n = {self.sat_n} must be an integer >= 2")
 
 
+class ImuHealthKernelParams(NamedTuple):
+    """:func:`imu_health_step`'s parameters: the vehicle's geometry (m: wheel radius, front
+    and rear track, CG to front axle; from :class:`vestim.io.vehicle.VehicleBody`) and the
+    :class:`ImuHealthParams` fields (SI, ``sat_n`` as a float)."""
+
+    wheel_radius: float
+    track_f: float
+    track_r: float
+    lf: float
+    tau1: float
+    tau2: float
+    tau_s: float
+    warm_s: float
+    slip_abs: float
+    slip_rel: float
+    valid_hold: float
+    e_max_acc: float
+    e_max_gyro: float
+    thr_acc: float
+    thr_gyro: float
+    quiet_acc: float
+    quiet_gyro: float
+    tau_f: float
+    tau_q: float
+    quiet_s: float
+    persist_s: float
+    yaw_tol: float
+    off_frac: float
+    stuck_s: float
+    motion_acc: float
+    motion_gyro: float
+    sat_n: float
+    sat_floor_acc: float
+    sat_floor_gyro: float
+    range_acc: float
+    range_gyro: float
+    gap_s: float
+
+
+class ImuHealthState(NamedTuple):
+    """:func:`imu_health_step`'s state. Per channel (3,), order ax, ay, yaw_rate (m/s² or
+    rad/s): ``mf`` the reading low-passed once, ``rf`` the reference low-passed once,
+    ``e2`` the residual low-passed twice, ``rs2`` the reference low-passed twice, ``base``
+    the residual's baseline, ``rslow`` and ``mslow`` the reference's and the reading's 1 s
+    averages, ``bias`` 1.0 while a bias step is flagged and ``step`` its size, ``last`` the
+    last reading, ``t_change`` when it last changed (s), ``ref_frozen`` the reference then,
+    ``top`` the largest magnitude seen, ``run`` the count of identical samples at it,
+    ``stuck`` and ``sat`` 1.0 while stuck / saturated, ``t_quiet`` when the drive last
+    moved (s), ``t_above`` when the residual went above the threshold (s; NaN: it is not).
+    Shared (1,): ``t_last`` the last sample's time, ``t_start`` the filters' (re)start
+    time, ``v_filt`` the low-passed rear-axle speed (m/s), ``t_trusted`` the time from
+    which the wheel reference is trusted (s), ``spread`` the low-passed front/rear speed
+    spread (m/s) and ``yaw_diff`` the low-passed front-minus-rear wheel yaw rate (rad/s).
+    NaN: not started."""
+
+    mf: np.ndarray
+    rf: np.ndarray
+    e2: np.ndarray
+    rs2: np.ndarray
+    base: np.ndarray
+    rslow: np.ndarray
+    bias: np.ndarray
+    step: np.ndarray
+    last: np.ndarray
+    t_change: np.ndarray
+    ref_frozen: np.ndarray
+    top: np.ndarray
+    run: np.ndarray
+    stuck: np.ndarray
+    sat: np.ndarray
+    t_quiet: np.ndarray
+    t_above: np.ndarray
+    mslow: np.ndarray
+    t_last: np.ndarray
+    t_start: np.ndarray
+    v_filt: np.ndarray
+    t_trusted: np.ndarray
+    spread: np.ndarray
+    yaw_diff: np.ndarray
+
+
+_SHARED = ("t_last", "t_start", "v_filt", "t_trusted", "spread", "yaw_diff")
+
+
 def imu_health_params(p: ImuHealthParams, wheel_radius: float, track_f: float, track_r: float,
-                      lf: float) -> np.ndarray:
-    """Pack for :func:`imu_health_kernel`: the thresholds of ``p`` per channel and the
-    geometry (m: wheel radius, front and rear track, CG to front axle; from
-    :class:`vestim.io.vehicle.VehicleBody`)."""
+                      lf: float) -> ImuHealthKernelParams:
+    """:func:`imu_health_step`'s parameters from the validated ``p`` and the geometry (m:
+    wheel radius, front and rear track, CG to front axle; from
+    :class:`vestim.io.vehicle.VehicleBody`).
+
+    Raises:
+        ValueError: a geometry value is not finite and > 0.
+    """
     for name, v in (("wheel_radius", wheel_radius), ("track_f", track_f),
                     ("track_r", track_r), ("lf", lf)):
         if not (np.isfinite(v) and v > 0):
             raise ValueError(f"IMU health geometry {name} = {v} must be finite and > 0 (m)")
-    return np.array([
-        wheel_radius, track_f, track_r, lf,                                  # 0-3
-        p.tau1, p.tau2, p.tau_s, p.warm_s,                                   # 4-7
-        p.slip_abs, p.slip_rel, p.valid_hold, p.off_frac,                    # 8-11
-        p.e_max_acc, p.e_max_acc, p.e_max_gyro,                              # 12-14
-        p.thr_acc, p.thr_acc, p.thr_gyro,                                    # 15-17
-        p.quiet_acc, p.quiet_acc, p.quiet_gyro,                              # 18-20
-        p.motion_acc, p.motion_acc, p.motion_gyro,                           # 21-23
-        p.sat_floor_acc, p.sat_floor_acc, p.sat_floor_gyro,                  # 24-26
-        p.range_acc, p.range_acc, p.range_gyro,                              # 27-29
-        p.stuck_s, float(p.sat_n), p.gap_s,                                  # 30-32
-        p.tau_f, p.tau_q, p.quiet_s, p.persist_s, p.yaw_tol,                 # 33-37
-    ])
+    return pack(ImuHealthKernelParams, p, wheel_radius=wheel_radius, track_f=track_f,
+                track_r=track_r, lf=lf)
 
 
-def new_imu_state() -> np.ndarray:
-    """Kernel state (4, 16): rows ax, ay, yaw_rate (filtered reading, reference, residual,
-    baselines, flags, frozen value, largest magnitude ...), then the shared row (last time,
-    start time, filtered speed, end of the untrusted-reference hold). NaN: not started."""
-    s = np.full((4, N_STATE), np.nan)
-    s[:3, 11] = 0.0  # largest magnitude seen
+def new_imu_state() -> ImuHealthState:
+    """A fresh :class:`ImuHealthState`: every entry NaN (not started) but the largest
+    magnitudes seen, 0."""
+    s = ImuHealthState(*(np.full(1 if name in _SHARED else 3, np.nan)
+                         for name in ImuHealthState._fields))
+    s.top[:] = 0.0
     return s
 
 
-# per-channel columns
-_MF, _RF, _E2, _RS2, _BASE, _RSLOW, _BIAS, _STEP, _LAST, _TCH, _RFRZ, _TOP, _RUN, _STUCK, \
-    _SAT, _QS, _AB, _MSLOW = range(18)
+@njit(cache=True, error_model="numpy")
+def _of(j: int, a: float, b: float, c: float) -> float:
+    """Channel ``j``'s value of (ax, ay, yaw_rate) = (a, b, c)."""
+    return a if j == 0 else b if j == 1 else c
 
 
-@njit(cache=True)
-def _restart(state: np.ndarray, t: float, x: np.ndarray, ref: np.ndarray, v: float) -> None:
+@njit(cache=True, error_model="numpy", inline="always")
+def _restart(s: ImuHealthState, t: float, x0: float, x1: float, x2: float, r0: float,
+             r1: float, r2: float, v: float) -> None:
+    """Filters started at the readings ``x*`` and references ``r*`` of time ``t`` (s), the
+    speed at ``v`` (m/s); the largest magnitudes seen are kept."""
     for j in range(3):
-        state[j, _MF] = x[j]
-        state[j, _RF] = ref[j]
-        state[j, _E2] = x[j] - ref[j]
-        state[j, _RS2] = ref[j]
-        state[j, _BASE] = x[j] - ref[j]
-        state[j, _RSLOW] = ref[j]
-        state[j, _BIAS] = 0.0
-        state[j, _STEP] = 0.0
-        state[j, _LAST] = np.nan
-        state[j, _TCH] = t
-        state[j, _RFRZ] = ref[j]
-        state[j, _RUN] = 0.0
-        state[j, _STUCK] = 0.0
-        state[j, _SAT] = 0.0
-        state[j, _QS] = t
-        state[j, _AB] = np.nan
-        state[j, _MSLOW] = x[j]
-    state[3, 1] = t
-    state[3, 2] = v
-    state[3, 3] = t  # reference trusted from now (filters start at the current values)
+        xj, rj = _of(j, x0, x1, x2), _of(j, r0, r1, r2)
+        s.mf[j] = xj
+        s.rf[j] = rj
+        s.e2[j] = xj - rj
+        s.rs2[j] = rj
+        s.base[j] = xj - rj
+        s.rslow[j] = rj
+        s.bias[j] = 0.0
+        s.step[j] = 0.0
+        s.last[j] = np.nan
+        s.t_change[j] = t
+        s.ref_frozen[j] = rj
+        s.run[j] = 0.0
+        s.stuck[j] = 0.0
+        s.sat[j] = 0.0
+        s.t_quiet[j] = t
+        s.t_above[j] = np.nan
+        s.mslow[j] = xj
+    s.t_start[0] = t
+    s.v_filt[0] = v
+    s.t_trusted[0] = t  # reference trusted from now (filters start at the current values)
 
 
-@njit(cache=True)
-def imu_health_kernel(t: np.ndarray, ax: np.ndarray, ay: np.ndarray, yaw_rate: np.ndarray,
-                      omega: np.ndarray, delta: np.ndarray, prm: np.ndarray, state: np.ndarray,
-                      ax_out: np.ndarray, ay_out: np.ndarray, r_out: np.ndarray,
-                      health: np.ndarray) -> None:
-    """Health of a_x, a_y (m/s²) and yaw rate (rad/s) over a block of samples at times ``t``
-    (s), against the wheel speeds ``omega`` (n, 4) rad/s (fl, fr, rl, rr) and road-wheel
-    angles ``delta`` (n, 4) rad. ``ax_out``/``ay_out``/``r_out`` get the readings with the
-    faulty ones replaced, ``health`` (n, 3) 1.0 (healthy) or 0.0 (left out), columns ax, ay,
-    yaw_rate. ``prm`` from :func:`imu_health_params`, ``state`` from :func:`new_imu_state`,
-    carried from block to block (a log in one call = sample by sample). NaN readings pass
-    through untouched; without wheel speeds only saturation is tested."""
-    rad, tf, tr, lf = prm[0], prm[1], prm[2], prm[3]
-    tau1, tau2, tau_s, warm = prm[4], prm[5], prm[6], prm[7]
-    slip_abs, slip_rel, vhold, off = prm[8], prm[9], prm[10], prm[11]
-    stuck_s, sat_n, gap = prm[30], prm[31], prm[32]
-    tau_f, tau_q, qhold, persist, yaw_tol = prm[33], prm[34], prm[35], prm[36], prm[37]
-    x = np.empty(3)
-    ref = np.zeros(3)
-    yw = np.array([0.5 * tf, -0.5 * tf, 0.5 * tr, -0.5 * tr])
-    for k in range(t.shape[0]):
-        tk = t[k]
-        x[0], x[1], x[2] = ax[k], ay[k], yaw_rate[k]
-        w = omega[k]
-        wheels = not (np.isnan(w[0]) or np.isnan(w[1]) or np.isnan(w[2]) or np.isnan(w[3]))
-        v = 0.5 * rad * (w[2] + w[3]) if wheels else 0.0
-        r_w = rad * (w[3] - w[2]) / tr if wheels else 0.0
-        dt = tk - state[3, 0]
-        fresh = np.isnan(state[3, 0]) or not (0.0 < dt <= gap)
-        state[3, 0] = tk
-        # --- yaw rate first: a_y's reference uses the yaw rate that goes out
+@njit(cache=True, error_model="numpy", inline="always")
+def imu_health_step(p: ImuHealthKernelParams, s: ImuHealthState, t: float, ax: float,
+                    ay: float, yaw_rate: float, w: np.ndarray, delta: np.ndarray,
+                    out: np.ndarray, health: np.ndarray) -> None:
+    """Health of one sample's a_x, a_y (m/s²) and yaw rate (rad/s) at time ``t`` (s),
+    against the wheel speeds ``w`` (4,) rad/s (fl, fr, rl, rr) and the road-wheel angles
+    ``delta`` (≥ 2: fl, fr) rad. ``out`` (3,) gets the readings (ax, ay, yaw_rate) with the
+    faulty ones replaced, ``health`` (3,) 1.0 (healthy) or 0.0 (left out); ``s`` is
+    advanced. A NaN reading passes through untouched; without wheel speeds only saturation
+    is tested."""
+    rad, tf, tr, lf = p.wheel_radius, p.track_f, p.track_r, p.lf
+    wheels = not (np.isnan(w[0]) or np.isnan(w[1]) or np.isnan(w[2]) or np.isnan(w[3]))
+    v = 0.5 * rad * (w[2] + w[3]) if wheels else 0.0
+    r_w = rad * (w[3] - w[2]) / tr if wheels else 0.0
+    dt = t - s.t_last[0]
+    fresh = np.isnan(s.t_last[0]) or not (0.0 < dt <= p.gap_s)
+    s.t_last[0] = t
+    # references (ax, ay, yaw_rate); a_y's is set below from the yaw rate that goes out
+    ref0, ref1, ref2 = 0.0, 0.0, 0.0
+    if fresh:
+        ref1 = v * (yaw_rate if not np.isnan(yaw_rate) else r_w)
+        _restart(s, t, ax, ay, yaw_rate, 0.0, ref1, r_w, v)
+        dt = 0.0
+    a1 = dt / (p.tau1 + dt)
+    a2 = dt / (p.tau2 + dt)
+    el = t - s.t_start[0]
+    a_s = dt / (min(p.tau_s, max(el, p.tau2)) + dt)
+    a_f = dt / (p.tau_f + dt)
+    a_q = dt / (p.tau_q + dt)
+    # wheels agree? front speeds brought to the rear axle's (small sideslip neglected)
+    if wheels:
+        rr = r_w
+        lo, hi = v, v
+        for i in range(2):
+            c = np.cos(delta[i])
+            yw = 0.5 * tf if i == 0 else -0.5 * tf
+            vi = (rad * w[i] - rr * lf * np.sin(delta[i])) / c + rr * yw if c > 0.1 else v
+            lo, hi = min(lo, vi), max(hi, vi)
+        cf = np.cos(0.5 * (delta[0] + delta[1]))
+        r_f = rad * (w[1] - w[0]) / (tf * cf) if cf > 0.1 else r_w
         if fresh:
-            ref[0], ref[1], ref[2] = 0.0, v * (x[2] if not np.isnan(x[2]) else r_w), r_w
-            _restart(state, tk, x, ref, v)
-            dt = 0.0
-        a1 = dt / (tau1 + dt)
-        a2 = dt / (tau2 + dt)
-        el = tk - state[3, 1]
-        a_s = dt / (min(tau_s, max(el, tau2)) + dt)
-        a_f = dt / (tau_f + dt)
-        a_q = dt / (tau_q + dt)
-        # wheels agree? front speeds brought to the rear axle's (small sideslip neglected)
-        if wheels:
-            rr = r_w
-            lo, hi = v, v
-            for i in range(2):
-                c = np.cos(delta[k, i])
-                vi = (rad * w[i] - rr * lf * np.sin(delta[k, i])) / c + rr * yw[i] if c > 0.1 \
-                    else v
-                lo, hi = min(lo, vi), max(hi, vi)
-            cf = np.cos(0.5 * (delta[k, 0] + delta[k, 1]))
-            r_f = rad * (w[1] - w[0]) / (tf * cf) if cf > 0.1 else r_w
-            if fresh:
-                state[3, 4], state[3, 5] = hi - lo, r_f - r_w
-            else:  # low-passed: the wheel speeds' noise is not disagreement
-                state[3, 4] += a2 * ((hi - lo) - state[3, 4])
-                state[3, 5] += a2 * ((r_f - r_w) - state[3, 5])
-            if state[3, 4] > slip_abs + slip_rel * abs(v) or abs(state[3, 5]) > yaw_tol:
-                state[3, 3] = tk + vhold
-        trusted = wheels and tk >= state[3, 3] and el >= warm
-        # reference for a_x: derivative of the low-passed speed (= low-passed derivative)
-        if wheels:
-            vf_new = state[3, 2] + a1 * (v - state[3, 2])
-            ref[0] = (vf_new - state[3, 2]) / dt if dt > 0 else state[0, _RF]
-            state[3, 2] = vf_new
-        ref[2] = r_w
-        for jj in range(3):
-            j = 2 if jj == 0 else jj - 1  # order: yaw rate, ax, ay
-            if j == 1:
-                ref[1] = v * r_out[k]
-            xj = x[j]
-            bad = False
-            replace_ref = False
-            if not np.isnan(xj):
-                # filters (the reference's only with wheel speeds)
-                if wheels:  # a_x's reference is already the low-passed derivative
-                    state[j, _RF] = ref[0] if j == 0 else (
-                        state[j, _RF] + a1 * (ref[j] - state[j, _RF]))
-                mf = state[j, _MF] + a1 * (xj - state[j, _MF])
-                state[j, _MF] = mf
-                if wheels:
-                    state[j, _E2] += a2 * ((mf - state[j, _RF]) - state[j, _E2])
-                    state[j, _RS2] += a2 * (state[j, _RF] - state[j, _RS2])
-                    state[j, _RSLOW] += a_q * (state[j, _RS2] - state[j, _RSLOW])
-                    m2 = state[j, _E2] + state[j, _RS2]  # the reading, low-passed twice
-                    state[j, _MSLOW] += a_q * (m2 - state[j, _MSLOW])
-                # saturation: a flat top at the largest magnitude seen, or at the range
-                floor, rng = prm[24 + j], prm[27 + j]
-                ax_ = abs(xj)
-                if xj == state[j, _LAST] and ax_ >= state[j, _TOP] and ax_ >= floor:
-                    state[j, _RUN] += 1.0
-                elif xj != state[j, _LAST]:
-                    state[j, _RUN] = 0.0
-                    state[j, _SAT] = 0.0
-                state[j, _TOP] = max(state[j, _TOP], ax_)
-                if state[j, _RUN] >= sat_n - 1.0 or ax_ >= rng:
-                    state[j, _SAT] = 1.0
-                elif ax_ < rng and xj != state[j, _LAST]:
-                    state[j, _SAT] = 0.0
-                # stuck: identical for stuck_s while the reference says otherwise
-                if xj != state[j, _LAST]:
-                    state[j, _LAST] = xj
-                    state[j, _TCH] = tk
-                    state[j, _RFRZ] = state[j, _RS2]
-                    state[j, _STUCK] = 0.0
-                elif tk - state[j, _TCH] >= stuck_s and wheels and tk >= state[3, 3]:
-                    motion = prm[21 + j]
-                    expect = state[j, _RS2] + state[j, _BASE]
-                    if (abs(state[j, _RS2] - state[j, _RFRZ]) > motion
-                            or abs(xj - expect) > motion):
-                        state[j, _STUCK] = 1.0
-                frozen = state[j, _STUCK] == 1.0 or state[j, _SAT] == 1.0
-                # bias step against the baseline, tested while the reference is quiet
-                if wheels:
-                    d = state[j, _E2] - state[j, _BASE]
-                    ok = trusted and not frozen and abs(d) < prm[12 + j]
-                    moving = max(abs(state[j, _RS2] - state[j, _RSLOW]),
-                                 abs(state[j, _E2] + state[j, _RS2] - state[j, _MSLOW]),
-                                 abs(state[j, _MF] - state[j, _MSLOW]))
-                    if not ok or moving > prm[18 + j]:
-                        state[j, _QS] = tk
-                    quiet = tk - state[j, _QS] >= qhold
-                    if state[j, _BIAS] == 1.0:
-                        if ok:
-                            state[j, _STEP] = d
-                            if abs(d) < off * prm[15 + j]:
-                                state[j, _BIAS] = 0.0
-                    elif ok and quiet and abs(d) > prm[15 + j]:
-                        if np.isnan(state[j, _AB]):
-                            state[j, _AB] = tk
-                        if tk - state[j, _AB] >= persist:
-                            state[j, _BIAS] = 1.0
-                            state[j, _STEP] = d
-                    else:
-                        state[j, _AB] = np.nan
-                    if state[j, _BIAS] == 0.0 and ok:
-                        ab = a_s if quiet else a_f
-                        state[j, _BASE] += ab * (state[j, _E2] - state[j, _BASE])
-                bad = frozen or state[j, _BIAS] == 1.0
-                replace_ref = frozen
-            if j == 0:
-                out = ax_out
-            elif j == 1:
-                out = ay_out
-            else:
-                out = r_out
-            out[k] = xj
-            health[k, j] = 1.0
-            if bad:
-                health[k, j] = 0.0
-                if replace_ref and wheels:
-                    out[k] = state[j, _RS2] + state[j, _BASE]
-                elif not replace_ref:
-                    out[k] = xj - state[j, _STEP]
+            s.spread[0], s.yaw_diff[0] = hi - lo, r_f - r_w
+        else:  # low-passed: the wheel speeds' noise is not disagreement
+            s.spread[0] += a2 * ((hi - lo) - s.spread[0])
+            s.yaw_diff[0] += a2 * ((r_f - r_w) - s.yaw_diff[0])
+        if s.spread[0] > p.slip_abs + p.slip_rel * abs(v) or abs(s.yaw_diff[0]) > p.yaw_tol:
+            s.t_trusted[0] = t + p.valid_hold
+    trusted = wheels and t >= s.t_trusted[0] and el >= p.warm_s
+    # reference for a_x: derivative of the low-passed speed (= low-passed derivative)
+    if wheels:
+        vf_new = s.v_filt[0] + a1 * (v - s.v_filt[0])
+        ref0 = (vf_new - s.v_filt[0]) / dt if dt > 0 else s.rf[0]
+        s.v_filt[0] = vf_new
+    ref2 = r_w
+    for jj in range(3):
+        j = 2 if jj == 0 else jj - 1  # order: yaw rate, ax, ay
+        if j == 1:
+            ref1 = v * out[2]
+        xj = _of(j, ax, ay, yaw_rate)
+        acc = j < 2
+        bad = False
+        replace_ref = False
+        if not np.isnan(xj):
+            # filters (the reference's only with wheel speeds)
+            if wheels:  # a_x's reference is already the low-passed derivative
+                s.rf[j] = ref0 if j == 0 else s.rf[j] + a1 * (_of(j, ref0, ref1, ref2) - s.rf[j])
+            mf = s.mf[j] + a1 * (xj - s.mf[j])
+            s.mf[j] = mf
+            if wheels:
+                s.e2[j] += a2 * ((mf - s.rf[j]) - s.e2[j])
+                s.rs2[j] += a2 * (s.rf[j] - s.rs2[j])
+                s.rslow[j] += a_q * (s.rs2[j] - s.rslow[j])
+                m2 = s.e2[j] + s.rs2[j]  # the reading, low-passed twice
+                s.mslow[j] += a_q * (m2 - s.mslow[j])
+            # saturation: a flat top at the largest magnitude seen, or at the range
+            floor = p.sat_floor_acc if acc else p.sat_floor_gyro
+            rng = p.range_acc if acc else p.range_gyro
+            ax_ = abs(xj)
+            if xj == s.last[j] and ax_ >= s.top[j] and ax_ >= floor:
+                s.run[j] += 1.0
+            elif xj != s.last[j]:
+                s.run[j] = 0.0
+                s.sat[j] = 0.0
+            s.top[j] = max(s.top[j], ax_)
+            if s.run[j] >= p.sat_n - 1.0 or ax_ >= rng:
+                s.sat[j] = 1.0
+            elif ax_ < rng and xj != s.last[j]:
+                s.sat[j] = 0.0
+            # stuck: identical for stuck_s while the reference says otherwise
+            if xj != s.last[j]:
+                s.last[j] = xj
+                s.t_change[j] = t
+                s.ref_frozen[j] = s.rs2[j]
+                s.stuck[j] = 0.0
+            elif t - s.t_change[j] >= p.stuck_s and wheels and t >= s.t_trusted[0]:
+                motion = p.motion_acc if acc else p.motion_gyro
+                expect = s.rs2[j] + s.base[j]
+                if abs(s.rs2[j] - s.ref_frozen[j]) > motion or abs(xj - expect) > motion:
+                    s.stuck[j] = 1.0
+            frozen = s.stuck[j] == 1.0 or s.sat[j] == 1.0
+            # bias step against the baseline, tested while the reference is quiet
+            if wheels:
+                thr = p.thr_acc if acc else p.thr_gyro
+                d = s.e2[j] - s.base[j]
+                ok = trusted and not frozen and abs(d) < (p.e_max_acc if acc else p.e_max_gyro)
+                moving = max(abs(s.rs2[j] - s.rslow[j]), abs(s.e2[j] + s.rs2[j] - s.mslow[j]),
+                             abs(s.mf[j] - s.mslow[j]))
+                if not ok or moving > (p.quiet_acc if acc else p.quiet_gyro):
+                    s.t_quiet[j] = t
+                quiet = t - s.t_quiet[j] >= p.quiet_s
+                if s.bias[j] == 1.0:
+                    if ok:
+                        s.step[j] = d
+                        if abs(d) < p.off_frac * thr:
+                            s.bias[j] = 0.0
+                elif ok and quiet and abs(d) > thr:
+                    if np.isnan(s.t_above[j]):
+                        s.t_above[j] = t
+                    if t - s.t_above[j] >= p.persist_s:
+                        s.bias[j] = 1.0
+                        s.step[j] = d
+                else:
+                    s.t_above[j] = np.nan
+                if s.bias[j] == 0.0 and ok:
+                    ab = a_s if quiet else a_f
+                    s.base[j] += ab * (s.e2[j] - s.base[j])
+            bad = frozen or s.bias[j] == 1.0
+            replace_ref = frozen
+        out[j] = xj
+        health[j] = 1.0
+        if bad:
+            health[j] = 0.0
+            if replace_ref and wheels:
+                out[j] = s.rs2[j] + s.base[j]
+            elif not replace_ref:
+                out[j] = xj - s.step[j]
+
+
+@njit(cache=True, error_model="numpy")
+def imu_health_kernel(p: ImuHealthKernelParams, s: ImuHealthState, t: np.ndarray,
+                      ax: np.ndarray, ay: np.ndarray, yaw_rate: np.ndarray, omega: np.ndarray,
+                      delta: np.ndarray, ax_out: np.ndarray, ay_out: np.ndarray,
+                      r_out: np.ndarray, health: np.ndarray) -> None:
+    """:func:`imu_health_step` over a block of samples at times ``t`` (n,) s: ``ax``,
+    ``ay`` (m/s²), ``yaw_rate`` (rad/s) (n,), the wheel speeds ``omega`` (n, 4) rad/s and
+    road-wheel angles ``delta`` (n, ≥ 2) rad. ``ax_out``/``ay_out``/``r_out`` (n,) get the
+    readings with the faulty ones replaced, ``health`` (n, 3) 1.0 or 0.0 (columns ax, ay,
+    yaw_rate). ``p`` from :func:`imu_health_params`, ``s`` from :func:`new_imu_state`,
+    carried from block to block (a log in one call = sample by sample)."""
+    out = np.empty(3)
+    for k in range(t.shape[0]):
+        imu_health_step(p, s, t[k], ax[k], ay[k], yaw_rate[k], omega[k], delta[k], out,
+                        health[k])
+        ax_out[k], ay_out[k], r_out[k] = out[0], out[1], out[2]

@@ -76,6 +76,7 @@ on them.
 from __future__ import annotations
 
 from dataclasses import dataclass, fields
+from typing import NamedTuple
 
 import numpy as np
 from numba import njit
@@ -83,7 +84,7 @@ from numba import njit
 from vestim.constants import CORNERS, G
 from vestim.io.vehicle import Vehicle
 from vestim.models.kinematics import corner_positions
-from vestim.params import check_ranges
+from vestim.params import check_ranges, pack
 
 CALIBRATION_RUNS: tuple[tuple[str, str, int], ...] = tuple(
     (veh, man, 0)
@@ -103,7 +104,6 @@ OUTPUT_NAMES: tuple[str, ...] = (
 """Columns of the kernel's ``out`` (n, 32), in order."""
 
 N_OUT = len(OUTPUT_NAMES)
-N_STATE = 14
 
 
 @dataclass(frozen=True)
@@ -186,165 +186,260 @@ class UncertaintyParams:
                      nonnegative=(f.name for f in fields(self)), finite=True)
 
 
-def uncertainty_params(vehicle: Vehicle, params: UncertaintyParams | None = None) -> np.ndarray:
-    """Pack the vehicle's geometry and the coefficients for :func:`uncertainty_kernel`.
+class UncertaintyKernelParams(NamedTuple):
+    """:func:`uncertainty_step`'s parameters: the vehicle's geometry (corner positions
+    ``x_*``, ``y_*`` from the CG, m; wheel radius, m; mass, kg; wheelbase, ``lf``, ``lr``,
+    CG and roll-centre heights, tracks, m; the front roll-stiffness share, 1; the
+    quasi-static roll and pitch gradients ``c_roll``, ``c_pitch``, rad per m/s²), then the
+    :class:`UncertaintyParams` fields."""
 
-    Layout: [x_1..x_4, y_1..y_4 (m), R, m, L, l_f, l_r, h, h_rc, s_f, t_f, t_r, c_φ, c_θ,
-    then the :class:`UncertaintyParams` fields in order].
-    """
+    x_fl: float
+    x_fr: float
+    x_rl: float
+    x_rr: float
+    y_fl: float
+    y_fr: float
+    y_rl: float
+    y_rr: float
+    wheel_radius: float
+    mass: float
+    wheelbase: float
+    lf: float
+    lr: float
+    cg_height: float
+    roll_center_height: float
+    roll_share_front: float
+    track_f: float
+    track_r: float
+    c_roll: float
+    c_pitch: float
+    k_filter_vx: float
+    k_filter_vy: float
+    sigma_vx0: float
+    k_speed: float
+    k_radius: float
+    tau_latency: float
+    sigma_vy0: float
+    k_alpha: float
+    k_drift: float
+    tau_drift: float
+    a_straight: float
+    sigma_yaw_rate: float
+    sigma_delta0: float
+    k_delta: float
+    v_min: float
+    v_min_slip: float
+    sigma_omega_min: float
+    tau_noise: float
+    sigma_cg_height: float
+    sigma_roll_center: float
+    sigma_roll_share: float
+    sigma_lf_rel: float
+    sigma_mass_rel: float
+    sigma_az: float
+    k_attitude: float
+    sigma_attitude0: float
+
+
+class UncertaintyState(NamedTuple):
+    """:func:`uncertainty_step`'s state: ``omega_1`` and ``omega_2`` (4,) the wheel speeds
+    of the previous two samples (rad/s), ``noise_var`` (4,) the wheel-speed noise variance
+    ((rad/s)²), ``t_last`` (1,) the time of the last sample (s) (all NaN until filled) and
+    ``drift`` (1,) the v_y drift d (m/s, 0 at the start)."""
+
+    omega_1: np.ndarray
+    omega_2: np.ndarray
+    noise_var: np.ndarray
+    t_last: np.ndarray
+    drift: np.ndarray
+
+
+def uncertainty_params(vehicle: Vehicle,
+                       params: UncertaintyParams | None = None) -> UncertaintyKernelParams:
+    """:func:`uncertainty_step`'s parameters: the vehicle's geometry and the validated
+    coefficients ``params`` (default :class:`UncertaintyParams`)."""
     p = params or UncertaintyParams()
     b, s = vehicle.body, vehicle.suspension
     xw, yw = corner_positions(vehicle)
     c_roll = b.mass * (b.cg_height - b.roll_center_height) / s.roll_stiffness
     c_pitch = b.mass * (b.cg_height - s.pitch_center_height) / s.pitch_stiffness
-    head = [b.wheel_radius, b.mass, b.wheelbase, b.lf, b.lr, b.cg_height, b.roll_center_height,
-            s.roll_stiffness_front_share, b.track_f, b.track_r, abs(c_roll), abs(c_pitch)]
-    return np.array([*xw, *yw, *head, *(float(getattr(p, f.name)) for f in fields(p))])
+    corners = {f"{q}_{c}": v for q, vals in (("x", xw), ("y", yw))
+               for c, v in zip(CORNERS, vals, strict=True)}
+    return pack(UncertaintyKernelParams, p, **corners, wheel_radius=b.wheel_radius,
+                mass=b.mass, wheelbase=b.wheelbase, lf=b.lf, lr=b.lr, cg_height=b.cg_height,
+                roll_center_height=b.roll_center_height,
+                roll_share_front=s.roll_stiffness_front_share, track_f=b.track_f,
+                track_r=b.track_r, c_roll=abs(c_roll), c_pitch=abs(c_pitch))
 
 
-def new_state() -> np.ndarray:
-    """Kernel state: ω_{k−1} (4), ω_{k−2} (4), the wheel-speed noise variance (4), the
-    time of the last sample (NaN until filled) and the v_y drift d (m/s, 0 at the start)."""
-    state = np.full(N_STATE, np.nan)
-    state[13] = 0.0
-    return state
+def new_state() -> UncertaintyState:
+    """A fresh :class:`UncertaintyState`."""
+    return UncertaintyState(np.full(4, np.nan), np.full(4, np.nan), np.full(4, np.nan),
+                            np.full(1, np.nan), np.zeros(1))
 
 
 @njit(cache=True, error_model="numpy")
-def uncertainty_kernel(t: np.ndarray, v: np.ndarray, sigma_v: np.ndarray, delta: np.ndarray,
+def _corner(i: int, fl: float, fr: float, rl: float, rr: float) -> float:
+    """Corner ``i``'s value of (fl, fr, rl, rr)."""
+    return fl if i == 0 else fr if i == 1 else rl if i == 2 else rr
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def uncertainty_step(p: UncertaintyKernelParams, s: UncertaintyState, t: float, vx: float,
+                     sigma_vx: float, sigma_vy: float, delta: np.ndarray, omega: np.ndarray,
+                     ax: float, ay: float, fz: np.ndarray, vxt: np.ndarray, vyt: np.ndarray,
+                     slip_ratio: np.ndarray, cornering_stiffness: float,
+                     out: np.ndarray) -> None:
+    """σ of every channel of one sample at time ``t`` (s), written into ``out``
+    (:data:`N_OUT`,) in the order of :data:`OUTPUT_NAMES`; ``s`` is advanced.
+
+    Inputs: the CG ``vx`` (m/s) and the filter's ``sigma_vx``, ``sigma_vy`` (m/s), per
+    corner (4,) the steering angle ``delta`` (rad), wheel speeds ``omega`` (rad/s), normal
+    loads ``fz`` (N), tire-frame corner velocities ``vxt``, ``vyt`` (m/s) and
+    ``slip_ratio`` (NaN: no wheel speeds); the IMU ``ax``, ``ay`` (m/s²) and the
+    normalised ``cornering_stiffness`` C_y/ΣF_z (1/rad). See the module docstring.
+    """
+    # Wheel-speed noise from the second difference (white noise: variance 6 σ²).
+    dt = t - s.t_last[0]
+    w_avg = 1.0 if np.isnan(dt) else min(max(dt, 0.0) / p.tau_noise, 1.0)
+    for i in range(4):
+        om = omega[i]
+        if not (np.isnan(s.omega_1[i]) or np.isnan(s.omega_2[i]) or np.isnan(om)):
+            d2 = om - 2.0 * s.omega_1[i] + s.omega_2[i]
+            var = d2 * d2 / 6.0
+            if np.isnan(s.noise_var[i]):
+                s.noise_var[i] = var
+            else:
+                s.noise_var[i] += w_avg * (var - s.noise_var[i])
+        s.omega_2[i] = s.omega_1[i]
+        s.omega_1[i] = om
+    s.t_last[0] = t
+    # v_y drift: grows with |a_y| while cornering, decays when driving straight.
+    step = 0.0 if np.isnan(dt) else max(dt, 0.0)
+    a_rel = ay / p.a_straight
+    decay = step / p.tau_drift / (1.0 + a_rel * a_rel)
+    s.drift[0] = (s.drift[0] + step * p.k_drift * abs(ay)) / (1.0 + decay)
+    drift = s.drift[0]
+    # CG velocity: the filter's σ (scaled) and the model error of the operating point.
+    m_vx = p.sigma_vx0 + p.k_speed * abs(vx) + p.tau_latency * abs(ax)
+    sx2 = (p.k_filter_vx * sigma_vx) ** 2 + m_vx * m_vx
+    cy = cornering_stiffness
+    alpha_hat = abs(ay) / (G * cy) if cy > 0.0 else 0.0
+    m_vy = p.sigma_vy0 + p.k_alpha * abs(vx) * alpha_hat
+    sy2 = (p.k_filter_vy * sigma_vy) ** 2 + m_vy * m_vy + drift * drift
+    out[0] = np.sqrt(sx2)
+    out[1] = np.sqrt(sy2)
+    sr2 = p.sigma_yaw_rate * p.sigma_yaw_rate
+    m_fz = 0.0
+    for i in range(4):
+        m_fz += fz[i]
+    radius, mass, wb = p.wheel_radius, p.mass, p.wheelbase
+    h, h_rc, sf = p.cg_height, p.roll_center_height, p.roll_share_front
+    for i in range(4):
+        xi = _corner(i, p.x_fl, p.x_fr, p.x_rl, p.x_rr)
+        yi = _corner(i, p.y_fl, p.y_fr, p.y_rl, p.y_rr)
+        # Corner velocities (body frame): covariance of (v_x,i, v_y,i).
+        pxx = sx2 + yi * yi * sr2
+        pyy = sy2 + xi * xi * sr2
+        pxy = -xi * yi * sr2
+        out[2 + i] = np.sqrt(pxx)
+        out[6 + i] = np.sqrt(pyy)
+        # Tire frame: rotation by δ plus the steering-angle error.
+        d = delta[i]
+        c, sn = np.cos(d), np.sin(d)
+        sd = p.sigma_delta0 + p.k_delta * abs(d) if i < 2 else 0.0  # rear wheels not steered
+        sd2 = sd * sd
+        ut, wt = vxt[i], vyt[i]
+        qxx = c * c * pxx + 2.0 * c * sn * pxy + sn * sn * pyy + wt * wt * sd2
+        qyy = sn * sn * pxx - 2.0 * c * sn * pxy + c * c * pyy + ut * ut * sd2
+        qxy = (-c * sn * pxx + (c * c - sn * sn) * pxy + c * sn * pyy) - ut * wt * sd2
+        out[10 + i] = np.sqrt(max(qxx, 0.0))
+        out[14 + i] = np.sqrt(max(qyy, 0.0))
+        # Slip ratio.
+        om = omega[i]
+        rw = radius * om
+        s_om = (p.sigma_omega_min if np.isnan(s.noise_var[i])
+                else max(np.sqrt(s.noise_var[i]), p.sigma_omega_min))
+        if np.isnan(slip_ratio[i]):
+            out[18 + i] = np.nan
+        elif max(abs(rw), abs(ut)) <= p.v_min_slip:
+            out[18 + i] = 1.0
+        elif abs(rw) >= abs(ut):  # driving: s = 1 − v_xt/(R ω)
+            g_u = -1.0 / rw
+            g_w = ut / (rw * om)
+            g_rel = ut / rw  # R error: ∂s/∂R · R
+            var = g_u * g_u * qxx + g_w * g_w * s_om * s_om + (g_rel * p.k_radius) ** 2
+            out[18 + i] = min(np.sqrt(var), 1.0)
+        else:  # braking: s = R ω/v_xt − 1
+            g_u = -rw / (ut * ut)
+            g_w = radius / ut
+            g_rel = rw / ut
+            var = g_u * g_u * qxx + g_w * g_w * s_om * s_om + (g_rel * p.k_radius) ** 2
+            out[18 + i] = min(np.sqrt(var), 1.0)
+        # Slip angle.
+        rho2 = ut * ut + wt * wt
+        if rho2 >= p.v_min * p.v_min:
+            a_u, a_w = -wt / rho2, ut / rho2
+            var = a_u * a_u * qxx + 2.0 * a_u * a_w * qxy + a_w * a_w * qyy
+        else:  # the estimate is 0 here: any direction of the velocity error counts
+            var = (qxx + qyy) / (p.v_min * p.v_min)
+        out[22 + i] = min(np.sqrt(max(var, 0.0)), 0.5 * np.pi)
+        # Normal load: the load-transfer parameters' uncertainty.
+        front = i < 2
+        side = -1.0 if i % 2 == 0 else 1.0  # F_z,left = ½F_z,axle − ΔF, right + ΔF
+        tr = p.track_f if front else p.track_r
+        share = sf if front else 1.0 - sf
+        l_other = p.lr if front else p.lf
+        sgn_lon = -1.0 if front else 1.0
+        mfx, mfy = mass * ax, mass * ay
+        d_h = sgn_lon * mfx / (2.0 * wb) + side * share * mfy / tr
+        d_hrc = side * mfy * (l_other / wb - share) / tr
+        d_sf = side * (1.0 if front else -1.0) * (h - h_rc) * mfy / tr
+        # l_f moves the static split and the roll-centre share l_o/L of the lateral
+        # transfer (l_r = L − l_f).
+        d_lf = sgn_lon * (m_fz / (2.0 * wb) + side * mfy * h_rc / (wb * tr))
+        var = ((d_h * p.sigma_cg_height) ** 2 + (d_hrc * p.sigma_roll_center) ** 2
+               + (d_sf * p.sigma_roll_share) ** 2 + (d_lf * p.sigma_lf_rel * wb) ** 2
+               + (fz[i] * p.sigma_mass_rel) ** 2 + (0.25 * mass * p.sigma_az) ** 2)
+        out[26 + i] = np.sqrt(var)
+    s_att0, k_att = p.sigma_attitude0, p.k_attitude
+    out[30] = np.sqrt(s_att0 * s_att0 + (k_att * p.c_roll * ay) ** 2)
+    out[31] = np.sqrt(s_att0 * s_att0 + (k_att * p.c_pitch * ax) ** 2)
+
+
+@njit(cache=True, error_model="numpy")
+def uncertainty_kernel(p: UncertaintyKernelParams, s: UncertaintyState, t: np.ndarray,
+                       v: np.ndarray, sigma_v: np.ndarray, delta: np.ndarray,
                        omega: np.ndarray, ax: np.ndarray, ay: np.ndarray, fz: np.ndarray,
                        vxt: np.ndarray, vyt: np.ndarray, slip_ratio: np.ndarray,
-                       cornering_stiffness: np.ndarray, prm: np.ndarray, state: np.ndarray,
-                       out: np.ndarray) -> None:
-    """σ of every channel over a chunk, written into ``out`` (n, :data:`N_OUT`) in the order
-    of :data:`OUTPUT_NAMES`; ``state`` (:func:`new_state`) is advanced in place.
+                       cornering_stiffness: np.ndarray, out: np.ndarray) -> None:
+    """:func:`uncertainty_step` over a chunk, into ``out`` (n, :data:`N_OUT`); ``s``
+    (:func:`new_state`) is advanced in place.
 
-    Inputs (n samples): t (s), v (n, 2) the CG velocity and sigma_v (n, 2) the filter's σ
-    (m/s), delta (n, 4) steering angle (rad), omega (n, 4) wheel speeds
+    Inputs (n samples, C-contiguous): t (s), v (n, 2) the CG velocity and sigma_v (n, 2)
+    the filter's σ (m/s), delta (n, 4) steering angle (rad), omega (n, 4) wheel speeds
     (rad/s), ax, ay the IMU accelerations (m/s²), fz (n, 4) normal loads (N), vxt, vyt
     (n, 4) tire-frame corner velocities (m/s), slip_ratio (n, 4) (NaN: no wheel speeds),
-    cornering_stiffness the normalised C_y/ΣF_z (1/rad); ``prm`` from
-    :func:`uncertainty_params`. See the module docstring for the models.
+    cornering_stiffness the normalised C_y/ΣF_z (1/rad); ``p`` from
+    :func:`uncertainty_params`.
     """
-    xw, yw = prm[0:4], prm[4:8]
-    radius, mass, wb, lf, lr, h, h_rc, sf, t_f, t_r, c_roll, c_pitch = prm[8:20]
-    (k_px, k_py, s_vx0, k_v, k_rad, tau_lat, s_vy0, k_a, k_drift, tau_drift, a_str, s_r, s_d0, k_d,
-     v_min, v_min_slip, s_om_min, tau_n, s_h, s_hrc, s_sf, s_lf, s_m, s_az, k_att,
-     s_att0) = prm[20:46]
     for k in range(t.shape[0]):
-        # Wheel-speed noise from the second difference (white noise: variance 6 σ²).
-        dt = t[k] - state[12]
-        w_avg = 1.0 if np.isnan(dt) else min(max(dt, 0.0) / tau_n, 1.0)
-        for i in range(4):
-            om = omega[k, i]
-            if not (np.isnan(state[i]) or np.isnan(state[4 + i]) or np.isnan(om)):
-                d2 = om - 2.0 * state[i] + state[4 + i]
-                var = d2 * d2 / 6.0
-                if np.isnan(state[8 + i]):
-                    state[8 + i] = var
-                else:
-                    state[8 + i] += w_avg * (var - state[8 + i])
-            state[4 + i] = state[i]
-            state[i] = om
-        state[12] = t[k]
-        # v_y drift: grows with |a_y| while cornering, decays when driving straight.
-        step = 0.0 if np.isnan(dt) else max(dt, 0.0)
-        a_rel = ay[k] / a_str
-        decay = step / tau_drift / (1.0 + a_rel * a_rel)
-        state[13] = (state[13] + step * k_drift * abs(ay[k])) / (1.0 + decay)
-        drift = state[13]
-        vx = v[k, 0]
-        # CG velocity: the filter's σ (scaled) and the model error of the operating point.
-        m_vx = s_vx0 + k_v * abs(vx) + tau_lat * abs(ax[k])
-        sx2 = (k_px * sigma_v[k, 0]) ** 2 + m_vx * m_vx
-        cy = cornering_stiffness[k]
-        alpha_hat = abs(ay[k]) / (G * cy) if cy > 0.0 else 0.0
-        m_vy = s_vy0 + k_a * abs(vx) * alpha_hat
-        sy2 = (k_py * sigma_v[k, 1]) ** 2 + m_vy * m_vy + drift * drift
-        out[k, 0] = np.sqrt(sx2)
-        out[k, 1] = np.sqrt(sy2)
-        sr2 = s_r * s_r
-        m_fz = 0.0
-        for i in range(4):
-            m_fz += fz[k, i]
-        for i in range(4):
-            # Corner velocities (body frame): covariance of (v_x,i, v_y,i).
-            pxx = sx2 + yw[i] * yw[i] * sr2
-            pyy = sy2 + xw[i] * xw[i] * sr2
-            pxy = -xw[i] * yw[i] * sr2
-            out[k, 2 + i] = np.sqrt(pxx)
-            out[k, 6 + i] = np.sqrt(pyy)
-            # Tire frame: rotation by δ plus the steering-angle error.
-            d = delta[k, i]
-            c, s = np.cos(d), np.sin(d)
-            sd = s_d0 + k_d * abs(d) if i < 2 else 0.0  # the rear wheels are not steered
-            sd2 = sd * sd
-            ut, wt = vxt[k, i], vyt[k, i]
-            qxx = c * c * pxx + 2.0 * c * s * pxy + s * s * pyy + wt * wt * sd2
-            qyy = s * s * pxx - 2.0 * c * s * pxy + c * c * pyy + ut * ut * sd2
-            qxy = (-c * s * pxx + (c * c - s * s) * pxy + c * s * pyy) - ut * wt * sd2
-            out[k, 10 + i] = np.sqrt(max(qxx, 0.0))
-            out[k, 14 + i] = np.sqrt(max(qyy, 0.0))
-            # Slip ratio.
-            om = omega[k, i]
-            rw = radius * om
-            s_om = s_om_min if np.isnan(state[8 + i]) else max(np.sqrt(state[8 + i]), s_om_min)
-            if np.isnan(slip_ratio[k, i]):
-                out[k, 18 + i] = np.nan
-            elif max(abs(rw), abs(ut)) <= v_min_slip:
-                out[k, 18 + i] = 1.0
-            elif abs(rw) >= abs(ut):  # driving: s = 1 − v_xt/(R ω)
-                g_u = -1.0 / rw
-                g_w = ut / (rw * om)
-                g_rel = ut / rw  # R error: ∂s/∂R · R
-                var = g_u * g_u * qxx + g_w * g_w * s_om * s_om + (g_rel * k_rad) ** 2
-                out[k, 18 + i] = min(np.sqrt(var), 1.0)
-            else:  # braking: s = R ω/v_xt − 1
-                g_u = -rw / (ut * ut)
-                g_w = radius / ut
-                g_rel = rw / ut
-                var = g_u * g_u * qxx + g_w * g_w * s_om * s_om + (g_rel * k_rad) ** 2
-                out[k, 18 + i] = min(np.sqrt(var), 1.0)
-            # Slip angle.
-            rho2 = ut * ut + wt * wt
-            if rho2 >= v_min * v_min:
-                a_u, a_w = -wt / rho2, ut / rho2
-                var = a_u * a_u * qxx + 2.0 * a_u * a_w * qxy + a_w * a_w * qyy
-            else:  # the estimate is 0 here: any direction of the velocity error counts
-                var = (qxx + qyy) / (v_min * v_min)
-            out[k, 22 + i] = min(np.sqrt(max(var, 0.0)), 0.5 * np.pi)
-            # Normal load: the load-transfer parameters' uncertainty.
-            front = i < 2
-            side = -1.0 if i % 2 == 0 else 1.0  # F_z,left = ½F_z,axle − ΔF, right + ΔF
-            tr = t_f if front else t_r
-            share = sf if front else 1.0 - sf
-            l_other = lr if front else lf
-            sgn_lon = -1.0 if front else 1.0
-            mfx, mfy = mass * ax[k], mass * ay[k]
-            d_h = sgn_lon * mfx / (2.0 * wb) + side * share * mfy / tr
-            d_hrc = side * mfy * (l_other / wb - share) / tr
-            d_sf = side * (1.0 if front else -1.0) * (h - h_rc) * mfy / tr
-            # l_f moves the static split and the roll-centre share l_o/L of the lateral
-            # transfer (l_r = L − l_f).
-            d_lf = sgn_lon * (m_fz / (2.0 * wb) + side * mfy * h_rc / (wb * tr))
-            var = ((d_h * s_h) ** 2 + (d_hrc * s_hrc) ** 2 + (d_sf * s_sf) ** 2
-                   + (d_lf * s_lf * wb) ** 2 + (fz[k, i] * s_m) ** 2
-                   + (0.25 * mass * s_az) ** 2)
-            out[k, 26 + i] = np.sqrt(var)
-        out[k, 30] = np.sqrt(s_att0 * s_att0 + (k_att * c_roll * ay[k]) ** 2)
-        out[k, 31] = np.sqrt(s_att0 * s_att0 + (k_att * c_pitch * ax[k]) ** 2)
+        uncertainty_step(p, s, t[k], v[k, 0], sigma_v[k, 0], sigma_v[k, 1], delta[k],
+                         omega[k], ax[k], ay[k], fz[k], vxt[k], vyt[k], slip_ratio[k],
+                         cornering_stiffness[k], out[k])
 
 
 def uncertainty(t: np.ndarray, v: np.ndarray, sigma_v: np.ndarray, delta: np.ndarray,
                 omega: np.ndarray, ax: np.ndarray, ay: np.ndarray, fz: np.ndarray,
                 vxt: np.ndarray, vyt: np.ndarray, slip_ratio: np.ndarray,
-                cornering_stiffness: np.ndarray, prm: np.ndarray,
-                state: np.ndarray | None = None) -> dict[str, np.ndarray]:
+                cornering_stiffness: np.ndarray, p: UncertaintyKernelParams,
+                state: UncertaintyState | None = None) -> dict[str, np.ndarray]:
     """:func:`uncertainty_kernel` on a chunk; returns ``{name: (n,) array}`` for every name of
     :data:`OUTPUT_NAMES` (``state``, if given, is advanced in place; else a fresh one).
 
     Raises:
-        ValueError: an array whose length differs from ``t``'s, or a wrong ``prm`` length.
+        ValueError: an array whose length differs from ``t``'s.
+        TypeError: ``p`` is not an :class:`UncertaintyKernelParams`.
     """
     n = t.shape[0]
     arrays = [np.ascontiguousarray(a, dtype=float) for a in
@@ -357,13 +452,11 @@ def uncertainty(t: np.ndarray, v: np.ndarray, sigma_v: np.ndarray, delta: np.nda
         shape = (n,) if w == 1 else (n, w)
         if a.shape != shape:
             raise ValueError(f"uncertainty input {name!r} has shape {a.shape}; expected {shape}")
-    expected = 20 + len(fields(UncertaintyParams))
-    if prm.shape != (expected,):
-        raise ValueError(f"uncertainty prm has shape {prm.shape}; expected ({expected},) from "
-                         "uncertainty_params(vehicle)")
+    if not isinstance(p, UncertaintyKernelParams):
+        raise TypeError(f"uncertainty p is a {type(p).__name__}; expected the "
+                        "UncertaintyKernelParams of uncertainty_params(vehicle)")
     st = new_state() if state is None else state
     out = np.empty((n, N_OUT))
     (t_, v_, sv, d_, om, ax_, ay_, fz_, vxt_, vyt_, sl, cy) = arrays
-    uncertainty_kernel(t_, v_, sv, d_, om, ax_, ay_, fz_, vxt_, vyt_, sl, cy,
-                       np.ascontiguousarray(prm, dtype=float), st, out)
+    uncertainty_kernel(p, st, t_, v_, sv, d_, om, ax_, ay_, fz_, vxt_, vyt_, sl, cy, out)
     return {name: out[:, j] for j, name in enumerate(OUTPUT_NAMES)}

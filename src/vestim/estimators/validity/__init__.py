@@ -25,11 +25,12 @@ in its mask.
 from __future__ import annotations
 
 from dataclasses import dataclass, fields
+from typing import NamedTuple
 
 import numpy as np
 from numba import njit
 
-from vestim.params import check_ranges
+from vestim.params import check_ranges, pack
 
 NOT_CONVERGED, STANDSTILL, REVERSE, HIGH_SLIP, UNOBSERVABLE, INPUT_FAULTY = 1, 2, 4, 8, 16, 32
 REASONS: dict[int, str] = {NOT_CONVERGED: "not converged", STANDSTILL: "standstill",
@@ -63,44 +64,67 @@ def output_names() -> list[str]:
     return [n for g in GROUPS for n in (f"valid_{g}", f"reason_{g}")]
 
 
-def validity_params(p: ValidityParams) -> np.ndarray:
-    """Pack :class:`ValidityParams` for :func:`validity_kernel` (field order)."""
-    return np.array([p.converge_s, p.standstill_speed, p.high_slip_ratio, p.high_slip_angle,
-                     p.straight_delta, p.straight_ay])
+class ValidityKernelParams(NamedTuple):
+    """:func:`validity_step`'s parameters: the :class:`ValidityParams` fields (SI)."""
+
+    converge_s: float
+    standstill_speed: float
+    high_slip_ratio: float
+    high_slip_angle: float
+    straight_delta: float
+    straight_ay: float
+
+
+def validity_params(p: ValidityParams) -> ValidityKernelParams:
+    """:func:`validity_step`'s parameters from the validated ``p``."""
+    return pack(ValidityKernelParams, p)
 
 
 MASKS = np.array(list(GROUPS.values()), dtype=np.int64)
-"""The groups' reason masks, in :data:`GROUPS` order (an argument of :func:`validity_kernel`)."""
+"""The groups' reason masks, in :data:`GROUPS` order (a compile-time constant of
+:func:`validity_step`)."""
 
 
-@njit(cache=True)
-def validity_kernel(t: np.ndarray, t_start: float, vx: np.ndarray, slip_ratio: np.ndarray,
-                    slip_angle: np.ndarray, delta: np.ndarray, ay: np.ndarray,
-                    held: np.ndarray, prm: np.ndarray, masks: np.ndarray,
-                    valid: np.ndarray, reason: np.ndarray) -> None:
-    """The flags of the module docstring for a block of samples (see :func:`validity`);
-    ``valid``, ``reason`` (n, groups) are written, one column per :data:`GROUPS` entry."""
-    converge, still, high_s, high_a, straight_d, straight_ay = (
-        prm[0], prm[1], prm[2], prm[3], prm[4], prm[5])
+@njit(cache=True, error_model="numpy", inline="always")
+def validity_step(p: ValidityKernelParams, t: float, t_start: float, vx: float,
+                  slip_ratio: np.ndarray, slip_angle: np.ndarray, delta_l: float,
+                  delta_r: float, ay: float, held: bool, valid: np.ndarray,
+                  reason: np.ndarray) -> None:
+    """The flags of the module docstring for one sample at time ``t`` (s; ``t_start`` the
+    log's first, s): CG ``vx`` (m/s), per-corner ``slip_ratio`` and ``slip_angle`` (4,)
+    (NaN: not known, no flag), the front road-wheel angles ``delta_l``, ``delta_r`` (rad),
+    ``ay`` (m/s²) and ``held`` (an input value was held over a dropout). ``valid`` and
+    ``reason`` (groups,) are written, one entry per :data:`GROUPS` group (stateless)."""
+    bits = 0
+    if t - t_start < p.converge_s:
+        bits |= NOT_CONVERGED
+    if abs(vx) < p.standstill_speed:
+        bits |= STANDSTILL
+    if vx <= -p.standstill_speed:
+        bits |= REVERSE
+    for c in range(4):  # NaN (not known) compares False: no flag
+        if abs(slip_ratio[c]) > p.high_slip_ratio or abs(slip_angle[c]) > p.high_slip_angle:
+            bits |= HIGH_SLIP
+    if max(abs(delta_l), abs(delta_r)) < p.straight_delta and abs(ay) < p.straight_ay:
+        bits |= UNOBSERVABLE
+    if held:
+        bits |= INPUT_FAULTY
+    for g in range(MASKS.shape[0]):
+        m = bits & MASKS[g]
+        valid[g] = 1.0 if m == 0 else 0.0
+        reason[g] = float(m)
+
+
+@njit(cache=True, error_model="numpy")
+def validity_kernel(p: ValidityKernelParams, t: np.ndarray, t_start: float, vx: np.ndarray,
+                    slip_ratio: np.ndarray, slip_angle: np.ndarray, delta: np.ndarray,
+                    ay: np.ndarray, held: np.ndarray, valid: np.ndarray,
+                    reason: np.ndarray) -> None:
+    """:func:`validity_step` over a block of samples (see :func:`validity`); ``valid``,
+    ``reason`` (n, groups) are written, one column per :data:`GROUPS` entry."""
     for k in range(t.shape[0]):
-        bits = 0
-        if t[k] - t_start < converge:
-            bits |= NOT_CONVERGED
-        if abs(vx[k]) < still:
-            bits |= STANDSTILL
-        if vx[k] <= -still:
-            bits |= REVERSE
-        for c in range(4):  # NaN (not known) compares False: no flag
-            if abs(slip_ratio[k, c]) > high_s or abs(slip_angle[k, c]) > high_a:
-                bits |= HIGH_SLIP
-        if max(abs(delta[k, 0]), abs(delta[k, 1])) < straight_d and abs(ay[k]) < straight_ay:
-            bits |= UNOBSERVABLE
-        if held[k]:
-            bits |= INPUT_FAULTY
-        for g in range(masks.shape[0]):
-            m = bits & masks[g]
-            valid[k, g] = 1.0 if m == 0 else 0.0
-            reason[k, g] = float(m)
+        validity_step(p, t[k], t_start, vx[k], slip_ratio[k], slip_angle[k], delta[k, 0],
+                      delta[k, 1], ay[k], held[k], valid[k], reason[k])
 
 
 def validity(t: np.ndarray, t_start: float, vx: np.ndarray, slip_ratio: np.ndarray,
@@ -121,10 +145,10 @@ def validity(t: np.ndarray, t_start: float, vx: np.ndarray, slip_ratio: np.ndarr
     n = t.shape[0]
     valid, reason = np.empty((n, len(GROUPS))), np.empty((n, len(GROUPS)))
     c = np.ascontiguousarray
-    validity_kernel(c(t, dtype=np.float64), float(t_start), c(vx, dtype=np.float64),
-                    c(slip_ratio, dtype=np.float64), c(slip_angle, dtype=np.float64),
-                    c(delta, dtype=np.float64), c(ay, dtype=np.float64),
-                    c(input_held, dtype=np.bool_), validity_params(p), MASKS, valid, reason)
+    validity_kernel(validity_params(p), c(t, dtype=np.float64), float(t_start),
+                    c(vx, dtype=np.float64), c(slip_ratio, dtype=np.float64),
+                    c(slip_angle, dtype=np.float64), c(delta, dtype=np.float64),
+                    c(ay, dtype=np.float64), c(input_held, dtype=np.bool_), valid, reason)
     out: dict[str, np.ndarray] = {}
     for j, group in enumerate(GROUPS):
         out[f"valid_{group}"] = valid[:, j]

@@ -33,13 +33,14 @@ acceleration integral, whose drift the bias state limits.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
-from typing import Any
+from dataclasses import dataclass, fields
+from typing import Any, NamedTuple
 
 import numpy as np
 from numba import njit
 
 from vestim.models.kinematics import middle_wheel_speed
+from vestim.params import check_ranges, pack
 
 _JIT: dict[str, Any] = {"cache": True, "error_model": "numpy"}
 
@@ -157,6 +158,12 @@ class ReferenceParams:
     sigma_vehicle_speed: float = 0.1
     q_vx_speed: float = 0.2
 
+    def __post_init__(self) -> None:
+        check_ranges(self, "reference", positive=(
+            "r_wheel", "gate", "r_vy", "gate_vy", "alpha_lin", "gate_vy_sat", "pair_gap",
+            "k_comb", "window", "sigma_corner_slip", "sigma_gnss", "sigma_vehicle_speed"),
+            nonnegative=[f.name for f in fields(self)])
+
 
 @dataclass(frozen=True)
 class StiffnessParams:
@@ -194,18 +201,144 @@ class StiffnessParams:
     tau_lp: float = 0.1
     e_robust: float = 0.002
 
+    def __post_init__(self) -> None:
+        check_ranges(self, "cornering", positive=("prior_sd", "sigma_kappa", "tau", "c_min",
+                                                  "tau_hp", "tau_lp", "e_robust"),
+                     nonnegative=("mu_linear", "v_min"), finite=True)
+        if not self.c_max > self.c_min:
+            raise ValueError(f"cornering c_max = {self.c_max} must be > c_min = {self.c_min}")
 
-def stiffness_params(c0: float, p: StiffnessParams, radius: float, wheelbase: float) -> np.ndarray:
-    """Parameter vector of :func:`axle_slip_angles` from the nominal c₀ (1/rad)."""
-    return np.array([1.0 / c0, (p.sigma_kappa * c0 / p.prior_sd) ** 2, p.tau, p.mu_linear,
-                     p.v_min, p.c_min, p.c_max, radius, wheelbase, p.tau_hp, p.tau_lp,
-                     p.e_robust])
+
+class StiffnessKernelParams(NamedTuple):
+    """Parameters of :func:`stiffness_step`, made by :func:`stiffness_params` (``pack`` of a
+    :class:`StiffnessParams`).
+
+    Attributes:
+        w0: prior compliance 1/c₀, rad.
+        prior_weight: weight of the prior, (σ_κ c₀/prior_sd)² (the prior counts as that many
+            samples of unit regressor).
+        tau, mu_linear, v_min, c_min, c_max, tau_hp, tau_lp, e_robust: as in
+            :class:`StiffnessParams`.
+        radius: wheel radius R, m.
+        wheelbase: L = l_f + l_r, m.
+    """
+
+    w0: float
+    prior_weight: float
+    tau: float
+    mu_linear: float
+    v_min: float
+    c_min: float
+    c_max: float
+    radius: float
+    wheelbase: float
+    tau_hp: float
+    tau_lp: float
+    e_robust: float
+
+
+class StiffnessState(NamedTuple):
+    """State of :func:`stiffness_step`, each a 1-element array (in place).
+
+    Attributes:
+        x_slow, y_slow: the high-pass's slow part of the low-passed regressor μ_yr − μ_yf and
+            of the regressand L r/v_x − δ (subtracted), rad.
+        linear: a linear-range sample has been seen (the band-pass starts from it).
+        sxx, sxy: exponentially forgotten weighted sums Σ x², Σ x y of the band-passed pair.
+        t_prev: time of the previous sample, s.
+        started: a sample has been seen.
+        x_lp, y_lp: the low-passed regressor and regressand.
+    """
+
+    x_slow: np.ndarray
+    y_slow: np.ndarray
+    linear: np.ndarray
+    sxx: np.ndarray
+    sxy: np.ndarray
+    t_prev: np.ndarray
+    started: np.ndarray
+    x_lp: np.ndarray
+    y_lp: np.ndarray
+
+
+def stiffness_params(c0: float, p: StiffnessParams, radius: float,
+                     wheelbase: float) -> StiffnessKernelParams:
+    """Parameters of :func:`stiffness_step` from the nominal c₀ (1/rad), R and L (m)."""
+    return pack(StiffnessKernelParams, p, w0=1.0 / c0,
+                prior_weight=(p.sigma_kappa * c0 / p.prior_sd) ** 2, radius=radius,
+                wheelbase=wheelbase)
+
+
+def new_stiffness_state() -> StiffnessState:
+    """A fresh :class:`StiffnessState` (nothing seen)."""
+    return StiffnessState(*(np.zeros(1) for _ in StiffnessState._fields))
+
+
+def clear_state(st: tuple[np.ndarray, ...]) -> None:
+    """Zero every array of a stage's state NamedTuple in place (its ``reset``)."""
+    for a in st:
+        a[...] = 0
 
 
 @njit(**_JIT)
-def axle_slip_angles(t: np.ndarray, omega: np.ndarray, yaw_rate: np.ndarray,
-                     delta: np.ndarray, fy: np.ndarray, fz: np.ndarray, prm: np.ndarray,
-                     state: np.ndarray, out: np.ndarray, out_c: np.ndarray) -> None:
+def _stiffness_rows(prm: StiffnessKernelParams, st: StiffnessState, start: int, stop: int,
+                    t: np.ndarray, omega: np.ndarray, yaw_rate: np.ndarray, delta: np.ndarray,
+                    fy: np.ndarray, fz: np.ndarray, out: np.ndarray, out_c: np.ndarray) -> None:
+    """Rows [start, stop) of :func:`axle_slip_angles`, the arrays of ``st`` taken once per
+    call (see :func:`_reference_rows`)."""
+    (x_slow, y_slow, linear, sxx, sxy, t_prev, started, x_lp, y_lp) = st
+    for k in range(start, stop):
+        fzf = fz[k, 0] + fz[k, 1]
+        fzr = fz[k, 2] + fz[k, 3]
+        mu_f = (fy[k, 0] + fy[k, 1]) / fzf if fzf > 1.0 else np.nan
+        mu_r = (fy[k, 2] + fy[k, 3]) / fzr if fzr > 1.0 else np.nan
+        dt = t[k] - t_prev[0] if started[0] == 1.0 else 0.0
+        lam = np.exp(-dt / prm.tau)
+        t_prev[0] = t[k]
+        started[0] = 1.0
+        sxx[0] *= lam
+        sxy[0] *= lam
+        w0, p0 = prm.w0, prm.prior_weight
+        v = middle_wheel_speed(omega, k, prm.radius)
+        if v > prm.v_min and abs(mu_f) < prm.mu_linear and abs(mu_r) < prm.mu_linear:
+            x = mu_r - mu_f
+            y = prm.wheelbase * yaw_rate[k] / v - 0.5 * (delta[k, 0] + delta[k, 1])
+            if linear[0] == 0.0:  # first linear sample: the band-pass starts from it
+                x_slow[0], y_slow[0], linear[0], x_lp[0], y_lp[0] = x, y, 1.0, x, y
+            g = min(dt / prm.tau_lp, 1.0)
+            x_lp[0] += g * (x - x_lp[0])
+            y_lp[0] += g * (y - y_lp[0])
+            g = min(dt / prm.tau_hp, 1.0)
+            x_slow[0] += g * (x_lp[0] - x_slow[0])
+            y_slow[0] += g * (y_lp[0] - y_slow[0])
+            x = x_lp[0] - x_slow[0]
+            y = y_lp[0] - y_slow[0]
+            # Cauchy weight on the residual against the current compliance: the onset of
+            # saturation or combined slip makes y jump where x does not, and would be read
+            # as a stiff tire.
+            e = (y - x * (sxy[0] + p0 * w0) / (sxx[0] + p0)) / prm.e_robust
+            wgt = 1.0 / (1.0 + e * e)
+            sxx[0] += wgt * x * x
+            sxy[0] += wgt * x * y
+        comp = (sxy[0] + p0 * w0) / (sxx[0] + p0)
+        c = min(max(1.0 / comp if comp > 0.0 else prm.c_max, prm.c_min), prm.c_max)
+        out_c[k] = c
+        out[k, 0] = -mu_f / c
+        out[k, 1] = -mu_r / c
+
+
+@njit(**_JIT)
+def stiffness_step(prm: StiffnessKernelParams, st: StiffnessState, k: int, t: np.ndarray,
+                   omega: np.ndarray, yaw_rate: np.ndarray, delta: np.ndarray, fy: np.ndarray,
+                   fz: np.ndarray, out: np.ndarray, out_c: np.ndarray) -> None:
+    """Sample ``k`` of :func:`axle_slip_angles` (its inputs and outputs), in place on ``st``."""
+    _stiffness_rows(prm, st, k, k + 1, t, omega, yaw_rate, delta, fy, fz, out, out_c)
+
+
+@njit(**_JIT)
+def axle_slip_angles(prm: StiffnessKernelParams, st: StiffnessState, t: np.ndarray,
+                     omega: np.ndarray, yaw_rate: np.ndarray, delta: np.ndarray, fy: np.ndarray,
+                     fz: np.ndarray, out: np.ndarray, out_c: np.ndarray) -> None:
     """Axle slip angles α = −F_y/(c ΣF_z) (n, 2) [front, rear], rad, the linear-tire input of
     the v_y bounds, with the normalised cornering stiffness c identified online.
 
@@ -216,52 +349,12 @@ def axle_slip_angles(t: np.ndarray, omega: np.ndarray, yaw_rate: np.ndarray,
     a regression for w (b takes a steering offset and the gyro bias over speed) in samples
     where both axles are in their linear range. It is solved in closed form from
     exponentially forgotten sums (time constant τ) with the Gaussian prior w₀ = 1/c₀ of
-    weight (σ_κ/σ_w)² (``prm`` from :func:`stiffness_params`: [w₀, prior weight, τ,
-    μ_linear, v_min, c_min, c_max, R, L]). Only yaw transients excite it: in steady
-    cornering μ_yf ≈ μ_yr and c stays where the last transient left it.
-    ``state`` = [Σλ, Σλx, Σλy, Σλx², Σλxy, t_prev, started]; ``out_c`` (n,) the c used.
-    NaN where ΣF_z ≤ 1 N (lifted axle).
+    weight (σ_κ/σ_w)² (``prm`` from :func:`stiffness_params`). Only yaw transients excite
+    it: in steady cornering μ_yf ≈ μ_yr and c stays where the last transient left it.
+    ``st`` (:class:`StiffnessState`) is advanced in place; ``out_c`` (n,) the c used.
+    NaN where ΣF_z ≤ 1 N (lifted axle). :func:`stiffness_step` for each sample.
     """
-    w0, p0, tau, mu_lin, v_min, c_min, c_max, radius, wheelbase, tau_hp, tau_lp, e_rob = (
-        prm[0], prm[1], prm[2], prm[3], prm[4], prm[5], prm[6], prm[7], prm[8], prm[9],
-        prm[10], prm[11])
-    for k in range(t.shape[0]):
-        fzf = fz[k, 0] + fz[k, 1]
-        fzr = fz[k, 2] + fz[k, 3]
-        mu_f = (fy[k, 0] + fy[k, 1]) / fzf if fzf > 1.0 else np.nan
-        mu_r = (fy[k, 2] + fy[k, 3]) / fzr if fzr > 1.0 else np.nan
-        dt = t[k] - state[5] if state[6] == 1.0 else 0.0
-        lam = np.exp(-dt / tau)
-        state[5] = t[k]
-        state[6] = 1.0
-        state[3] *= lam
-        state[4] *= lam
-        v = middle_wheel_speed(omega, k, radius)
-        if v > v_min and abs(mu_f) < mu_lin and abs(mu_r) < mu_lin:
-            x = mu_r - mu_f
-            y = wheelbase * yaw_rate[k] / v - 0.5 * (delta[k, 0] + delta[k, 1])
-            if state[2] == 0.0:  # first linear sample: the band-pass starts from it
-                state[0], state[1], state[2], state[7], state[8] = x, y, 1.0, x, y
-            g = min(dt / tau_lp, 1.0)
-            state[7] += g * (x - state[7])
-            state[8] += g * (y - state[8])
-            g = min(dt / tau_hp, 1.0)
-            state[0] += g * (state[7] - state[0])
-            state[1] += g * (state[8] - state[1])
-            x = state[7] - state[0]
-            y = state[8] - state[1]
-            # Cauchy weight on the residual against the current compliance: the onset of
-            # saturation or combined slip makes y jump where x does not, and would be read
-            # as a stiff tire.
-            e = (y - x * (state[4] + p0 * w0) / (state[3] + p0)) / e_rob
-            wgt = 1.0 / (1.0 + e * e)
-            state[3] += wgt * x * x
-            state[4] += wgt * x * y
-        comp = (state[4] + p0 * w0) / (state[3] + p0)
-        c = min(max(1.0 / comp if comp > 0.0 else c_max, c_min), c_max)
-        out_c[k] = c
-        out[k, 0] = -mu_f / c
-        out[k, 1] = -mu_r / c
+    _stiffness_rows(prm, st, 0, t.shape[0], t, omega, yaw_rate, delta, fy, fz, out, out_c)
 
 
 @dataclass(frozen=True)
@@ -294,18 +387,130 @@ class RadiusParams:
     s_max: float = 1.08
     latency_max: float = 0.5
 
+    def __post_init__(self) -> None:
+        check_ranges(self, "radius", positive=("prior_fixes", "prior_speed", "prior_accel", "tau",
+                                               "a_max", "tau_acc", "s_min"),
+                     nonnegative=("v_min", "latency_max"), finite=True)
+        if not self.s_max > self.s_min:
+            raise ValueError(f"radius s_max = {self.s_max} must be > s_min = {self.s_min}")
 
-def radius_params(p: RadiusParams, radius: float) -> np.ndarray:
-    """Parameter vector of :func:`gnss_calibration`."""
-    return np.array([radius, p.prior_fixes * p.prior_speed**2, p.tau, p.v_min, p.a_max,
-                     p.s_min, p.s_max, p.prior_fixes * p.prior_accel**2, p.tau_acc,
-                     p.latency_max])
+
+class RadiusKernelParams(NamedTuple):
+    """Parameters of :func:`radius_step`, made by :func:`radius_params` (``pack`` of a
+    :class:`RadiusParams`).
+
+    Attributes:
+        radius: the vehicle file's wheel radius R, m.
+        w_s: weight of the prior scale 1, prior_fixes·prior_speed², (m/s)².
+        tau, v_min, a_max, s_min, s_max, tau_acc, latency_max: as in :class:`RadiusParams`.
+        w_c: weight of the prior c = s L = 0, prior_fixes·prior_accel², (m/s²)².
+    """
+
+    radius: float
+    w_s: float
+    tau: float
+    v_min: float
+    a_max: float
+    s_min: float
+    s_max: float
+    w_c: float
+    tau_acc: float
+    latency_max: float
+
+
+class RadiusState(NamedTuple):
+    """State of :func:`radius_step`, each a 1-element array (in place).
+
+    Attributes:
+        s_vv, s_va, s_aa, s_gv, s_ga: exponentially forgotten sums Σ v_w², Σ v_w v̇_w,
+            Σ v̇_w², Σ g v_w, Σ g v̇_w over the fixes used.
+        t_prev: time of the previous sample, s.
+        started: a sample has been seen.
+        v_prev: v_w of the previous sample, m/s.
+        a_w: low-passed v̇_w, m/s².
+    """
+
+    s_vv: np.ndarray
+    s_va: np.ndarray
+    s_aa: np.ndarray
+    s_gv: np.ndarray
+    s_ga: np.ndarray
+    t_prev: np.ndarray
+    started: np.ndarray
+    v_prev: np.ndarray
+    a_w: np.ndarray
+
+
+def radius_params(p: RadiusParams, radius: float) -> RadiusKernelParams:
+    """Parameters of :func:`radius_step` for the file's wheel radius (m)."""
+    return pack(RadiusKernelParams, p, radius=radius, w_s=p.prior_fixes * p.prior_speed**2,
+                w_c=p.prior_fixes * p.prior_accel**2)
+
+
+def new_radius_state() -> RadiusState:
+    """A fresh :class:`RadiusState` (nothing seen)."""
+    return RadiusState(*(np.zeros(1) for _ in RadiusState._fields))
 
 
 @njit(**_JIT)
-def gnss_calibration(t: np.ndarray, omega: np.ndarray, gnss: np.ndarray, prm: np.ndarray,
-                     state: np.ndarray, out_scale: np.ndarray, out_latency: np.ndarray,
-                     out_speed: np.ndarray) -> None:
+def _radius_rows(prm: RadiusKernelParams, st: RadiusState, start: int, stop: int,
+                 t: np.ndarray, omega: np.ndarray, gnss: np.ndarray, out_scale: np.ndarray,
+                 out_latency: np.ndarray, out_speed: np.ndarray) -> None:
+    """Rows [start, stop) of :func:`gnss_calibration`, the arrays of ``st`` taken once per
+    call (see :func:`_reference_rows`)."""
+    (s_vv, s_va, s_aa, s_gv, s_ga, t_prev, started, v_prev, a_lp) = st
+    for k in range(start, stop):
+        v_w = middle_wheel_speed(omega, k, prm.radius)
+        if started[0] == 1.0:
+            dt = t[k] - t_prev[0]
+            lam = np.exp(-dt / prm.tau)
+            s_vv[0] *= lam
+            s_va[0] *= lam
+            s_aa[0] *= lam
+            s_gv[0] *= lam
+            s_ga[0] *= lam
+            if dt > 0:
+                g_lp = min(dt / prm.tau_acc, 1.0)
+                a_lp[0] += g_lp * ((v_w - v_prev[0]) / dt - a_lp[0])
+        t_prev[0] = t[k]
+        started[0] = 1.0
+        v_prev[0] = v_w
+        a_w = a_lp[0]
+        g = gnss[k]
+        if not np.isnan(g) and v_w > prm.v_min and abs(a_w) < prm.a_max:
+            s_vv[0] += v_w * v_w
+            s_va[0] += v_w * a_w
+            s_aa[0] += a_w * a_w
+            s_gv[0] += g * v_w
+            s_ga[0] += g * a_w
+        # Normal equations for (s, c) with regressors (v_w, −v̇_w) and the priors.
+        m11 = s_vv[0] + prm.w_s
+        m12 = -s_va[0]
+        m22 = s_aa[0] + prm.w_c
+        b1 = s_gv[0] + prm.w_s
+        b2 = -s_ga[0]
+        det = m11 * m22 - m12 * m12
+        sc = (b1 * m22 - m12 * b2) / det
+        c = (m11 * b2 - m12 * b1) / det
+        sc = min(max(sc, prm.s_min), prm.s_max)
+        lat = min(max(c / sc, 0.0), prm.latency_max)
+        out_scale[k] = sc
+        out_latency[k] = lat
+        out_speed[k] = g + lat * sc * a_w if not np.isnan(g) else np.nan
+
+
+@njit(**_JIT)
+def radius_step(prm: RadiusKernelParams, st: RadiusState, k: int, t: np.ndarray,
+                omega: np.ndarray, gnss: np.ndarray, out_scale: np.ndarray,
+                out_latency: np.ndarray, out_speed: np.ndarray) -> None:
+    """Sample ``k`` of :func:`gnss_calibration` (its inputs and outputs), in place on ``st``."""
+    _radius_rows(prm, st, k, k + 1, t, omega, gnss, out_scale, out_latency, out_speed)
+
+
+@njit(**_JIT)
+def gnss_calibration(prm: RadiusKernelParams, st: RadiusState, t: np.ndarray,
+                     omega: np.ndarray, gnss: np.ndarray, out_scale: np.ndarray,
+                     out_latency: np.ndarray, out_speed: np.ndarray) -> None:
     """Effective-radius scale s (R_eff = s R) and receiver latency L from the GNSS speed.
 
     A fix g_k is the speed L seconds ago: g_k ≈ s (v_w − L v̇_w) at its sample (v_w: the
@@ -315,46 +520,10 @@ def gnss_calibration(t: np.ndarray, omega: np.ndarray, gnss: np.ndarray, prm: np
     [0, L_max], s to [s_min, s_max]. Without fixes s = 1 and L = 0. ``out_speed`` is the fix
     brought to its own sample, g + L v̇_w (NaN between fixes): the CG-speed measurement.
     The RAV4 log: s 1.0088 (its CAN wheel speeds read 0.86 % low), L 0.16 s.
-    ``prm`` from :func:`radius_params`; ``state`` = [Σvv, Σva, Σaa, Σgv, Σga, t_prev,
-    started, v_w prev, v̇_w].
+    ``prm`` from :func:`radius_params`; ``st`` (:class:`RadiusState`) is advanced in place.
+    :func:`radius_step` for each sample.
     """
-    radius, w_s, tau, v_min, a_max, s_min, s_max, w_c, tau_a, l_max = (
-        prm[0], prm[1], prm[2], prm[3], prm[4], prm[5], prm[6], prm[7], prm[8], prm[9])
-    for k in range(t.shape[0]):
-        v_w = middle_wheel_speed(omega, k, radius)
-        if state[6] == 1.0:
-            dt = t[k] - state[5]
-            lam = np.exp(-dt / tau)
-            for j in range(5):
-                state[j] *= lam
-            if dt > 0:
-                g_lp = min(dt / tau_a, 1.0)
-                state[8] += g_lp * ((v_w - state[7]) / dt - state[8])
-        state[5] = t[k]
-        state[6] = 1.0
-        state[7] = v_w
-        a_w = state[8]
-        g = gnss[k]
-        if not np.isnan(g) and v_w > v_min and abs(a_w) < a_max:
-            state[0] += v_w * v_w
-            state[1] += v_w * a_w
-            state[2] += a_w * a_w
-            state[3] += g * v_w
-            state[4] += g * a_w
-        # Normal equations for (s, c) with regressors (v_w, −v̇_w) and the priors.
-        m11 = state[0] + w_s
-        m12 = -state[1]
-        m22 = state[2] + w_c
-        b1 = state[3] + w_s
-        b2 = -state[4]
-        det = m11 * m22 - m12 * m12
-        sc = (b1 * m22 - m12 * b2) / det
-        c = (m11 * b2 - m12 * b1) / det
-        sc = min(max(sc, s_min), s_max)
-        lat = min(max(c / sc, 0.0), l_max)
-        out_scale[k] = sc
-        out_latency[k] = lat
-        out_speed[k] = g + lat * sc * a_w if not np.isnan(g) else np.nan
+    _radius_rows(prm, st, 0, t.shape[0], t, omega, gnss, out_scale, out_latency, out_speed)
 
 
 @njit(**_JIT)
@@ -409,49 +578,156 @@ def _lateral_update(x: np.ndarray, P: np.ndarray, z: float, alpha: float, r_whit
     return _block_update(x, P, LAT, z, r_white + sig_col * sig_col * inflate, np.inf)
 
 
-@njit(**_JIT)
-def reference_kernel(t: np.ndarray, omega: np.ndarray, torque: np.ndarray, mu_x: np.ndarray,
-                     axle_slip: np.ndarray,
-                     f_x: np.ndarray, f_y: np.ndarray, yaw_rate: np.ndarray, delta: np.ndarray,
-                     extra_v: np.ndarray, extra_var: np.ndarray, radius: float, lf: float,
-                     lr: float, xw: np.ndarray, yw: np.ndarray, prm: np.ndarray, x: np.ndarray,
-                     P: np.ndarray, hist: np.ndarray, state: np.ndarray, out_v: np.ndarray,
-                     out_sig: np.ndarray, out_bias: np.ndarray,
-                     out_trust: np.ndarray) -> None:
-    """Advance the reference filter over a chunk, in place on x (5,), P (5, 5), hist, state.
+class ReferenceKernelParams(NamedTuple):
+    """Parameters of :func:`reference_step`, made by :func:`reference_params` (``pack`` of a
+    :class:`ReferenceParams` and the vehicle's geometry).
 
-    ``prm`` = [q_vx, q_vy, q_bias, r_wheel, k_mu, k_acc, slip_sign, gate, r_vy, k_vy,
-    bias_max, q_bias_y, bias_y_max, k_rel, gate_vy, tau_vy, s_side, tau_wheel, acc_dead, k_lat,
-    q_gyro_bias, gyro_bias_sd, torque_dead, k_comb, alpha_lin, k_rel_sat, tau_vy_sat,
-    side_vy_sat, gate_vy_sat, pair_gap, kinematic f_x (1: f_x is v̇_x itself, from a speed's
-    derivative, so the prediction leaves out r v_y; 0: the IMU's specific force)].
-    ``axle_slip`` (n, 2): front and rear axle slip angles from the lateral forces and the
-    nominal cornering stiffness, rad (spec sign: atan(v_yt/v_xt)); NaN where unknown.
-    ``hist`` (m, 5): last m samples of (t, ω_fl…ω_rr) for ω̇; ``state`` = [t_prev, started,
-    f_x, f_y, r of the previous sample, samples with every wheel rejected, index of the
-    oldest row of ``hist`` (a ring buffer)]. ``extra_v``/
-    ``extra_var`` (n, m2): extra CG-speed measurements and variances, NaN where absent.
-    Outputs: out_v (n, 2) [v_x, v_y], out_sig (n, 2), out_bias (n, 3) [b_x, b_y, b_r], out_trust
-    (n, 4) the standard deviation used per wheel (inf where rejected).
+    Attributes:
+        q_vx … pair_gap, sigma_corner_slip: the :class:`ReferenceParams` fields of the same
+            name (``q_vx`` is ``q_vx_speed`` and ``slip_sign`` ∞ where ``kin_fx``).
+        kin_fx: f_x is v̇_x itself, a speed's derivative (a log without ``ax``): the
+            prediction leaves out r v_y; else the IMU's specific force.
+        radius: wheel radius R, m.
+        lf, lr: CG to front / rear axle, m.
+        xw, yw: corner positions from the CG (fl, fr, rl, rr), m, (4,) each.
     """
-    q_vx, q_vy, q_b, r_w, k_mu, k_acc, s_sign, gate, r_vy, k_vy, bias_max = (
-        prm[0], prm[1], prm[2], prm[3], prm[4], prm[5], prm[6], prm[7], prm[8], prm[9], prm[10])
-    q_by, by_max, k_rel, gate_vy, tau_vy, s_side, tau_w, acc_dead, k_lat = prm[11:20]
-    q_br, gyro_sd, torque_dead, k_comb = prm[20], prm[21], prm[22], prm[23]
-    alpha_lin, k_rel_sat, tau_sat, side_sat, gate_sat, pair_gap = prm[24:30]
-    kin_fx = prm[30] != 0.0
+
+    q_vx: float
+    q_vy: float
+    q_bias: float
+    r_wheel: float
+    k_mu: float
+    k_acc: float
+    slip_sign: float
+    gate: float
+    r_vy: float
+    k_vy: float
+    bias_max: float
+    q_bias_y: float
+    bias_y_max: float
+    k_rel: float
+    gate_vy: float
+    tau_vy: float
+    side_vy: float
+    tau_wheel: float
+    acc_dead: float
+    k_lat: float
+    q_gyro_bias: float
+    gyro_bias_sd: float
+    torque_dead: float
+    k_comb: float
+    alpha_lin: float
+    k_rel_sat: float
+    tau_vy_sat: float
+    side_vy_sat: float
+    gate_vy_sat: float
+    pair_gap: float
+    sigma_corner_slip: float
+    kin_fx: bool
+    radius: float
+    lf: float
+    lr: float
+    xw: np.ndarray
+    yw: np.ndarray
+
+
+class ReferenceState(NamedTuple):
+    """State of :func:`reference_step` (in place); scalars are 1-element arrays.
+
+    Attributes:
+        x: (5,) [v_x, v_y, b_x, b_y, b_r] (m/s, m/s², rad/s; indices VX … BR).
+        P: (5, 5) its covariance (block diagonal: [v_x, b_x] and [v_y, b_y, b_r]).
+        hist: (window, 5) the last ``window`` samples of (t, ω_fl … ω_rr), for ω̇; a ring
+            buffer whose oldest row is ``oldest``.
+        t_prev: time of the previous sample, s.
+        started: the filter has been initialised (bool).
+        fx_prev, fy_prev, r_prev: f_x, f_y (m/s²) and the yaw rate (rad/s) of the previous
+            sample, held over the prediction interval.
+        n_rejected: consecutive samples with every available wheel rejected (int).
+        oldest: row of ``hist`` overwritten next (int).
+        wheel_v, wheel_slip: (4,) work arrays of a sample (each wheel's CG speed, m/s, and
+            its innovation over speed); no memory from one sample to the next.
+    """
+
+    x: np.ndarray
+    P: np.ndarray
+    hist: np.ndarray
+    t_prev: np.ndarray
+    started: np.ndarray
+    fx_prev: np.ndarray
+    fy_prev: np.ndarray
+    r_prev: np.ndarray
+    n_rejected: np.ndarray
+    oldest: np.ndarray
+    wheel_v: np.ndarray
+    wheel_slip: np.ndarray
+
+
+def reference_params(p: ReferenceParams, radius: float, lf: float, lr: float, xw: np.ndarray,
+                     yw: np.ndarray, fx_from_speed: bool = False) -> ReferenceKernelParams:
+    """Parameters of :func:`reference_step` for the tuning ``p`` and the geometry (m).
+
+    ``fx_from_speed`` (a log without ``ax``, see :meth:`ReferenceFilter.advance`): ``kin_fx``
+    set, ``q_vx`` = ``q_vx_speed`` and ``slip_sign`` = ∞ (no slip-signed inflation)."""
+    speed = {"kin_fx": True, "q_vx": p.q_vx_speed, "slip_sign": np.inf} if fx_from_speed else {
+        "kin_fx": False}
+    return pack(ReferenceKernelParams, p, radius=radius, lf=lf, lr=lr,
+                xw=np.ascontiguousarray(xw, dtype=float),
+                yw=np.ascontiguousarray(yw, dtype=float), **speed)
+
+
+def new_reference_state(window: int) -> ReferenceState:
+    """A fresh :class:`ReferenceState` (not started) with an ω history of ``window`` rows."""
+    return ReferenceState(x=np.zeros(5), P=np.zeros((5, 5)), hist=np.zeros((window, 5)),
+                          t_prev=np.zeros(1), started=np.zeros(1, dtype=np.bool_),
+                          fx_prev=np.zeros(1), fy_prev=np.zeros(1), r_prev=np.zeros(1),
+                          n_rejected=np.zeros(1, dtype=np.int64),
+                          oldest=np.zeros(1, dtype=np.int64), wheel_v=np.zeros(4),
+                          wheel_slip=np.zeros(4))
+
+
+@njit(**_JIT)
+def copy_reference_state(dst: ReferenceState, src: ReferenceState) -> None:
+    """``dst`` ← ``src``, array by array in place (same window)."""
+    dst.x[:] = src.x
+    dst.P[:, :] = src.P
+    dst.hist[:, :] = src.hist
+    dst.t_prev[:] = src.t_prev
+    dst.started[:] = src.started
+    dst.fx_prev[:] = src.fx_prev
+    dst.fy_prev[:] = src.fy_prev
+    dst.r_prev[:] = src.r_prev
+    dst.n_rejected[:] = src.n_rejected
+    dst.oldest[:] = src.oldest
+    dst.wheel_v[:] = src.wheel_v
+    dst.wheel_slip[:] = src.wheel_slip
+
+
+@njit(**_JIT)
+def _reference_rows(prm: ReferenceKernelParams, st: ReferenceState, start: int, stop: int,
+                    t: np.ndarray, omega: np.ndarray, torque: np.ndarray, mu_x: np.ndarray,
+                    axle_slip: np.ndarray, f_x: np.ndarray, f_y: np.ndarray,
+                    yaw_rate: np.ndarray, delta: np.ndarray, extra_v: np.ndarray,
+                    extra_var: np.ndarray, out_v: np.ndarray, out_sig: np.ndarray,
+                    out_bias: np.ndarray, out_trust: np.ndarray) -> None:
+    """Rows [start, stop) of :func:`reference_kernel`: the per-sample body of
+    :func:`reference_step` and the loop of the batch kernel in one function. The arrays of
+    ``st`` and ``prm`` are taken once per call: a NamedTuple's array field is a new
+    reference (two atomic reference-count operations), and a call per sample with them
+    made the batch kernel 1.5 times slower (and a call with the arrays unpacked, 2.5)."""
+    (x, P, hist, t_prev, started, fx_prev, fy_prev, r_prev, n_rejected, oldest_row, wheel_v,
+     wheel_slip) = st
+    xw, yw = prm.xw, prm.yw
     m = hist.shape[0]
     nx = x.shape[0]
-    wheel_v = np.empty(4)
-    wheel_slip = np.zeros(4)
-    for k in range(t.shape[0]):
-        dt = t[k] - state[0]
-        if state[1] == 0.0:
+    for k in range(start, stop):
+        dt = t[k] - t_prev[0]
+        if not started[0]:
             v0 = 0.0
             n_wheels = 0
             for i in range(4):
                 if not np.isnan(omega[k, i]):
-                    v0 += 0.25 * radius * omega[k, i]
+                    v0 += 0.25 * prm.radius * omega[k, i]
                     n_wheels += 1
             p_vx = 1.0
             if n_wheels == 0:
@@ -471,23 +747,23 @@ def reference_kernel(t: np.ndarray, omega: np.ndarray, torque: np.ndarray, mu_x:
             P[VY, VY] = 0.25
             P[BX, BX] = 0.25
             P[BY, BY] = 0.05**2
-            P[BR, BR] = gyro_sd * gyro_sd
-            state[1] = 1.0
+            P[BR, BR] = prm.gyro_bias_sd * prm.gyro_bias_sd
+            started[0] = True
             for j in range(m):
                 hist[j, 0] = t[k]
                 for i in range(4):
                     hist[j, 1 + i] = omega[k, i]
-            state[6] = 0.0
+            oldest_row[0] = 0
         else:
-            fxp, fyp = state[2], state[3]
-            rp = state[4] - x[BR]
+            fxp, fyp = fx_prev[0], fy_prev[0]
+            rp = r_prev[0] - x[BR]
             vx, vy = x[VX], x[VY]
             # Prediction (000 eq. (15) with the lateral equation and bias states):
             # v̇x = f_x − b_x + (r − b_r) v_y,  v̇y = f_y − b_y − (r − b_r) v_x  (inputs of the
             # previous sample). The gyro bias b_r enters v_y scaled by v_x, so unlike the
             # accelerometer bias b_y it changes with speed (0.002 rad/s × 25 m/s of speed
             # change = 0.05 m/s² of v̇_y error) and is observable as the speed changes.
-            if kin_fx:  # f_x is a speed's derivative: it already holds the r v_y term
+            if prm.kin_fx:  # f_x is a speed's derivative: it already holds the r v_y term
                 x[VX] = vx + dt * (fxp - x[BX])
             else:
                 x[VX] = vx + dt * (fxp - x[BX] + rp * vy)
@@ -502,29 +778,31 @@ def reference_kernel(t: np.ndarray, omega: np.ndarray, torque: np.ndarray, mu_x:
             P[VX, VX] = pvv
             P[VX, BX] = pvb
             P[BX, VX] = pvb
-            # Lateral block: v_y ← v_y − dt b_y + dt v_x b_r, i.e. row g = [1, −dt, dt v_x].
+            # Lateral block: v_y ← v_y − dt b_y + dt v_x b_r, i.e. row g = [1, −dt, dt v_x]:
+            # (P gᵀ) per state of the block, then g P gᵀ.
             g1, g2 = -dt, dt * vx
-            p0 = np.empty(3)
-            for a in range(3):
-                p0[a] = P[LAT[a], VY] + g1 * P[LAT[a], BY] + g2 * P[LAT[a], BR]
-            pyy = p0[0] + g1 * p0[1] + g2 * p0[2]
-            P[VY, VY] = pyy
-            for a in range(1, 3):
-                P[LAT[a], VY] = p0[a]
-                P[VY, LAT[a]] = p0[a]
-            P[VX, VX] += q_vx * dt
-            P[VY, VY] += q_vy * dt
-            P[BX, BX] += q_b * dt
-            P[BY, BY] += q_by * dt
-            P[BR, BR] += q_br * dt
-        oldest = int(state[6])  # ring buffer: the oldest row is overwritten next
+            p_y = P[VY, VY] + g1 * P[VY, BY] + g2 * P[VY, BR]
+            p_b = P[BY, VY] + g1 * P[BY, BY] + g2 * P[BY, BR]
+            p_r = P[BR, VY] + g1 * P[BR, BY] + g2 * P[BR, BR]
+            P[VY, VY] = p_y + g1 * p_b + g2 * p_r
+            P[BY, VY] = p_b
+            P[VY, BY] = p_b
+            P[BR, VY] = p_r
+            P[VY, BR] = p_r
+            P[VX, VX] += prm.q_vx * dt
+            P[VY, VY] += prm.q_vy * dt
+            P[BX, BX] += prm.q_bias * dt
+            P[BY, BY] += prm.q_bias_y * dt
+            P[BR, BR] += prm.q_gyro_bias * dt
+        oldest = oldest_row[0]  # ring buffer: the oldest row is overwritten next
         span = t[k] - hist[oldest, 0]
         r_now = yaw_rate[k] - x[BR]
         # Wheel speeds mapped to the CG, trusted by their evidence of slip.
         accepted = 0
         available = 0
+        r_w = prm.r_wheel
         sq_rw = np.sqrt(r_w)
-        inflate_w = max(tau_w / dt, 1.0) if dt > 0 else 1.0
+        inflate_w = max(prm.tau_wheel / dt, 1.0) if dt > 0 else 1.0
         for i in range(4):
             if np.isnan(omega[k, i]):  # no wheel speed: no measurement (a log without them)
                 out_trust[k, i] = np.inf
@@ -537,21 +815,22 @@ def reference_kernel(t: np.ndarray, omega: np.ndarray, torque: np.ndarray, mu_x:
             vxw = x[VX] - r_now * yw[i]
             vyw = x[VY] + r_now * xw[i]
             vyt = -vxw * s + vyw * c
-            v_meas = radius * omega[k, i] * c - vyt * s + r_now * yw[i]
+            v_meas = prm.radius * omega[k, i] * c - vyt * s + r_now * yw[i]
             omega_dot = (omega[k, i] - hist[oldest, 1 + i]) / span if span > 0 else 0.0
-            acc_err = max(abs(radius * omega_dot - f_x[k] + x[BX]) - acc_dead, 0.0)
-            sig = (sq_rw + k_mu * abs(mu_x[k, i]) * abs(x[VX]) + k_acc * acc_err
-                   + k_lat * abs(vyt))
+            acc_err = max(abs(prm.radius * omega_dot - f_x[k] + x[BX]) - prm.acc_dead, 0.0)
+            sig = (sq_rw + prm.k_mu * abs(mu_x[k, i]) * abs(x[VX]) + prm.k_acc * acc_err
+                   + prm.k_lat * abs(vyt))
             innov_pred = v_meas - x[VX]
             tq = torque[k, i]
-            if (tq > torque_dead and innov_pred > 0) or (tq < -torque_dead and innov_pred < 0):
-                sig *= 1.0 + (innov_pred / s_sign) ** 2
+            if ((tq > prm.torque_dead and innov_pred > 0)
+                    or (tq < -prm.torque_dead and innov_pred < 0)):
+                sig *= 1.0 + (innov_pred / prm.slip_sign) ** 2
             # The slip part of σ is a persistent error (a slipping wheel stays slipping), so
             # it enters with the correlation-time inflation, like the lateral model error;
             # the gate uses the plain σ.
             slip_part = sig - sq_rw
             wheel_slip[i] = abs(innov_pred) / max(abs(x[VX]), 1.0)
-            if innov_pred * innov_pred > gate * gate * (P[VX, VX] + sig * sig):
+            if innov_pred * innov_pred > prm.gate * prm.gate * (P[VX, VX] + sig * sig):
                 res = np.nan
             else:
                 res = _block_update(x, P, LON, v_meas,
@@ -563,19 +842,19 @@ def reference_kernel(t: np.ndarray, omega: np.ndarray, torque: np.ndarray, mu_x:
         # Recovery: every wheel rejected although none shows evidence of slip means the
         # filter, not the wheels, has drifted. After ``window`` such samples, restart v_x
         # from the median wheel speed (an ESC unit's reference-speed reset).
-        state[5] = state[5] + 1.0 if accepted == 0 and available > 0 else 0.0
-        if state[5] >= m:
+        n_rejected[0] = n_rejected[0] + 1 if accepted == 0 and available > 0 else 0
+        if n_rejected[0] >= m:
             x[VX] = np.median(wheel_v) if available == 4 else np.nanmedian(wheel_v)
             for j in range(nx):
                 P[VX, j] = 0.0
                 P[j, VX] = 0.0
             P[VX, VX] = r_w
-            state[5] = 0.0
+            n_rejected[0] = 0
         # Extra CG-speed measurements (fusion with the corner-based estimators).
         for j in range(extra_v.shape[1]):
             if not np.isnan(extra_v[k, j]):
                 # A corner observer's error persists like a wheel's slip error: same inflation.
-                _block_update(x, P, LON, extra_v[k, j], extra_var[k, j] * inflate_w, gate)
+                _block_update(x, P, LON, extra_v[k, j], extra_var[k, j] * inflate_w, prm.gate)
         # v_y from each axle's slip angle by the linear tire (front: v_y = v_x(α_f + δ) − l_f r,
         # rear: v_y = v_x α_r + l_r r). Its error grows with the slip angle (stiffness
         # uncertainty, k_rel) and with the sideslip acceleration |f_y − b_y − r v_x| (the
@@ -588,9 +867,11 @@ def reference_kernel(t: np.ndarray, omega: np.ndarray, torque: np.ndarray, mu_x:
         # (their difference is the kinematic L r/v_x − δ): a gap between them means one is
         # saturating or sliding, whatever the friction; both are then bounds (h_pair → 0).
         # On low μ this is the only sign: the linear slip angle stays small in a slide.
+        lf, lr = prm.lf, prm.lr
         h_pair = 1.0
         if not (np.isnan(axle_slip[k, 0]) or np.isnan(axle_slip[k, 1])):
-            gap = (x[VX] * (axle_slip[k, 0] + d_f - axle_slip[k, 1]) - (lf + lr) * r_now) / pair_gap
+            gap = ((x[VX] * (axle_slip[k, 0] + d_f - axle_slip[k, 1]) - (lf + lr) * r_now)
+                   / prm.pair_gap)
             h_pair = 1.0 / (1.0 + gap * gap)
         for a in range(2):
             alpha = axle_slip[k, a]
@@ -601,32 +882,33 @@ def reference_kernel(t: np.ndarray, omega: np.ndarray, torque: np.ndarray, mu_x:
             # short correlation, pulled on both sides; towards saturation (friction unknown)
             # only a bound: σ k_rel_sat |v_x α|, a second of correlation, one-sided, 3σ gate.
             # h blends the two by the slip angle itself.
-            q = (alpha / alpha_lin) ** 2
+            q = (alpha / prm.alpha_lin) ** 2
             h = h_pair / (1.0 + q * q)
-            sig = (k_rel_sat + h * (k_rel - k_rel_sat)) * abs(x[VX] * alpha) + k_vy * beta_acc
-            tau_a = tau_sat + h * (tau_vy - tau_sat)
+            sig = ((prm.k_rel_sat + h * (prm.k_rel - prm.k_rel_sat)) * abs(x[VX] * alpha)
+                   + prm.k_vy * beta_acc)
+            tau_a = prm.tau_vy_sat + h * (prm.tau_vy - prm.tau_vy_sat)
             inflate = max(tau_a / dt, 1.0) if dt > 0 else 1.0
-            side = side_sat + h * (s_side - side_sat)
+            side = prm.side_vy_sat + h * (prm.side_vy - prm.side_vy_sat)
             # A wheel in longitudinal slip is in combined slip: its lateral force falls short
             # of the linear tire's, so the bound's one-sidedness sharpens with the axle's
             # larger slip ratio λ (wheel-speed innovation over speed): side/(1 + (λ/λ_c)²).
-            lam = max(wheel_slip[2 * a], wheel_slip[2 * a + 1]) / k_comb
+            lam = max(wheel_slip[2 * a], wheel_slip[2 * a + 1]) / prm.k_comb
             side /= 1.0 + lam * lam
-            _lateral_update(x, P, z, alpha, r_vy, sig, inflate, side,
-                            gate_sat + h * (gate_vy - gate_sat))
+            _lateral_update(x, P, z, alpha, prm.r_vy, sig, inflate, side,
+                            prm.gate_vy_sat + h * (prm.gate_vy - prm.gate_vy_sat))
         # The biases are physically bounded (sensor bias plus a grade or bank of at most
         # ~5 %): a larger value means slip or a sliding car is being explained away as bias.
-        x[BX] = min(max(x[BX], -bias_max), bias_max)
-        x[BY] = min(max(x[BY], -by_max), by_max)
+        x[BX] = min(max(x[BX], -prm.bias_max), prm.bias_max)
+        x[BY] = min(max(x[BY], -prm.bias_y_max), prm.bias_y_max)
         # History for ω̇, and inputs held over the next interval.
         hist[oldest, 0] = t[k]
         for i in range(4):
             hist[oldest, 1 + i] = omega[k, i]
-        state[6] = float((oldest + 1) % m)
-        state[0] = t[k]
-        state[2] = f_x[k]
-        state[3] = f_y[k]
-        state[4] = yaw_rate[k]
+        oldest_row[0] = (oldest + 1) % m
+        t_prev[0] = t[k]
+        fx_prev[0] = f_x[k]
+        fy_prev[0] = f_y[k]
+        r_prev[0] = yaw_rate[k]
         out_v[k, 0] = x[VX]
         out_v[k, 1] = x[VY]
         out_sig[k, 0] = np.sqrt(max(P[VX, VX], 0.0))
@@ -634,6 +916,42 @@ def reference_kernel(t: np.ndarray, omega: np.ndarray, torque: np.ndarray, mu_x:
         out_bias[k, 0] = x[BX]
         out_bias[k, 1] = x[BY]
         out_bias[k, 2] = x[BR]
+
+
+@njit(**_JIT)
+def reference_step(prm: ReferenceKernelParams, st: ReferenceState, k: int, t: np.ndarray,
+                   omega: np.ndarray, torque: np.ndarray, mu_x: np.ndarray,
+                   axle_slip: np.ndarray, f_x: np.ndarray, f_y: np.ndarray,
+                   yaw_rate: np.ndarray, delta: np.ndarray, extra_v: np.ndarray,
+                   extra_var: np.ndarray, out_v: np.ndarray, out_sig: np.ndarray,
+                   out_bias: np.ndarray, out_trust: np.ndarray) -> None:
+    """Sample ``k`` of :func:`reference_kernel` (row ``k`` of its inputs and outputs), in
+    place on ``st``; allocates nothing (but the median of the recovery)."""
+    _reference_rows(prm, st, k, k + 1, t, omega, torque, mu_x, axle_slip, f_x, f_y, yaw_rate,
+                    delta, extra_v, extra_var, out_v, out_sig, out_bias, out_trust)
+
+
+@njit(**_JIT)
+def reference_kernel(prm: ReferenceKernelParams, st: ReferenceState, t: np.ndarray,
+                     omega: np.ndarray, torque: np.ndarray, mu_x: np.ndarray,
+                     axle_slip: np.ndarray, f_x: np.ndarray, f_y: np.ndarray,
+                     yaw_rate: np.ndarray, delta: np.ndarray, extra_v: np.ndarray,
+                     extra_var: np.ndarray, out_v: np.ndarray, out_sig: np.ndarray,
+                     out_bias: np.ndarray, out_trust: np.ndarray) -> None:
+    """Advance the reference filter over a chunk, in place on ``st``: :func:`reference_step`
+    for each sample (the same body, with the loop inside it, see :func:`_reference_rows`).
+
+    ``prm`` from :func:`reference_params`; ``st`` a :class:`ReferenceState`. Inputs (n rows):
+    t (s), ω (n, 4) rad/s (NaN: no wheel speed), wheel torques (n, 4) N m, μ_x (n, 4),
+    ``axle_slip`` (n, 2): front and rear axle slip angles from the lateral forces and the
+    nominal cornering stiffness, rad (spec sign: atan(v_yt/v_xt)), NaN where unknown; f_x,
+    f_y (m/s²) in the road plane, yaw rate (rad/s), δ (n, 4) rad; ``extra_v``/``extra_var``
+    (n, m2): extra CG-speed measurements (m/s) and variances ((m/s)²), NaN where absent.
+    Outputs: out_v (n, 2) [v_x, v_y], out_sig (n, 2), out_bias (n, 3) [b_x, b_y, b_r], out_trust
+    (n, 4) the standard deviation used per wheel (inf where rejected).
+    """
+    _reference_rows(prm, st, 0, t.shape[0], t, omega, torque, mu_x, axle_slip, f_x, f_y,
+                    yaw_rate, delta, extra_v, extra_var, out_v, out_sig, out_bias, out_trust)
 
 
 class ReferenceFilter:
@@ -654,29 +972,23 @@ class ReferenceFilter:
         self.xw = np.ascontiguousarray(xw, dtype=float)
         self.yw = np.ascontiguousarray(yw, dtype=float)
         self.params = params or ReferenceParams()
-        p = self.params
-        self._prm = np.array([p.q_vx, p.q_vy, p.q_bias, p.r_wheel, p.k_mu, p.k_acc, p.slip_sign,
-                              p.gate, p.r_vy, p.k_vy, p.bias_max, p.q_bias_y, p.bias_y_max,
-                              p.k_rel, p.gate_vy, p.tau_vy, p.side_vy, p.tau_wheel,
-                              p.acc_dead, p.k_lat, p.q_gyro_bias, p.gyro_bias_sd,
-                              p.torque_dead, p.k_comb, p.alpha_lin, p.k_rel_sat,
-                              p.tau_vy_sat, p.side_vy_sat, p.gate_vy_sat, p.pair_gap, 0.0])
+        geometry = (radius, lf, lr, self.xw, self.yw)
+        self.kernel_params = reference_params(self.params, *geometry)
+        """The kernel's parameters (f_x the IMU's specific force)."""
+        self.kernel_params_speed = reference_params(self.params, *geometry, fx_from_speed=True)
+        """The kernel's parameters where f_x is a speed's derivative (``fx_from_speed``)."""
         self.reset()
 
     def reset(self) -> None:
-        self._x = np.zeros(5)
-        self._P = np.zeros((5, 5))
-        self._hist = np.zeros((self.params.window, 5))
-        self._state = np.zeros(7)
+        self.state = new_reference_state(self.params.window)
 
-    def snapshot(self) -> tuple[np.ndarray, ...]:
-        """Copies of the filter's state (x, P, ω history, bookkeeping), for :meth:`restore`."""
-        return (self._x.copy(), self._P.copy(), self._hist.copy(), self._state.copy())
+    def snapshot(self) -> ReferenceState:
+        """A copy of the filter's state, for :meth:`restore`."""
+        return ReferenceState(*(a.copy() for a in self.state))
 
     def restore(self, snap: tuple[np.ndarray, ...]) -> None:
         """Continue from a :meth:`snapshot` (of this filter or of one with the same params)."""
-        for own, saved in zip((self._x, self._P, self._hist, self._state), snap, strict=True):
-            own[...] = saved
+        copy_reference_state(self.state, ReferenceState(*snap))
 
     def advance(self, t: np.ndarray, omega: np.ndarray, torque: np.ndarray, mu_x: np.ndarray,
                 axle_slip: np.ndarray, f_x: np.ndarray, f_y: np.ndarray, yaw_rate: np.ndarray,
@@ -705,15 +1017,8 @@ class ReferenceFilter:
         sig = np.empty((n, 2))
         bias = np.empty((n, 3))
         trust = np.empty((n, 4))
-        prm = self._prm
-        if fx_from_speed:
-            prm = prm.copy()
-            prm[6] = np.inf
-            prm[30] = 1.0
-            prm[0] = self.params.q_vx_speed
-        reference_kernel(t, omega, torque, mu_x, np.ascontiguousarray(axle_slip), f_x, f_y,
-                         yaw_rate, delta,
-                         np.ascontiguousarray(extra_v), np.ascontiguousarray(extra_var),
-                         self.radius, self.lf, self.lr, self.xw, self.yw, prm, self._x,
-                         self._P, self._hist, self._state, v, sig, bias, trust)
+        prm = self.kernel_params_speed if fx_from_speed else self.kernel_params
+        reference_kernel(prm, self.state, t, omega, torque, mu_x, np.ascontiguousarray(axle_slip),
+                         f_x, f_y, yaw_rate, delta, np.ascontiguousarray(extra_v),
+                         np.ascontiguousarray(extra_var), v, sig, bias, trust)
         return {"v": v, "sigma": sig, "bias": bias, "trust": trust}
