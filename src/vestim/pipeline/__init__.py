@@ -184,6 +184,7 @@ class Pipeline:
         self._prev = np.array([np.nan, 0.0])  # (t, yaw rate) of the previous sample, for ṙ
         self._fused_is_reference = True  # the fused filter has not diverged from the plain one
         self._step_args: tuple[Any, ...] | None = None  # compiled step's arguments (cache)
+        self._step_fn: Callable[..., None] | None = None  # its entry point for their types
         self._t_prev_step = -math.inf  # step()'s guard: last t, last finite value per channel
         # the last sample whose every value was finite, and its time (step()'s hold)
         self._last_good: tuple[float, Mapping[str, float]] = (-math.inf, {})
@@ -233,6 +234,7 @@ class Pipeline:
         self._t_gnss = np.nan
         self._fused_is_reference = True
         self._step_args = None
+        self._step_fn = None
         self._step_rates = None
 
     def _yaw_acceleration(self, t: np.ndarray, r: np.ndarray) -> np.ndarray:
@@ -713,7 +715,7 @@ class Pipeline:
         row = self._fast_step(sample)
         if row is not None:
             return row
-        self._step_args = None  # the general path moves state the compiled one caches
+        self._step_args = self._step_fn = None  # the general path moves state it caches
         u = self.force._inputs_from_sample(sample)
         cols = columns_from_groups(self._groups(u.t, self._advance(u)))
         return {k: float(v[0]) for k, v in cols.items()}
@@ -742,7 +744,9 @@ class Pipeline:
         s = np.array(vec)
         out = np.empty(len(self._step_names))
         args = self._step_args
-        online.step_kernel(s, out, *args)
+        if self._step_fn is None:  # the entry point for these argument types, typed once
+            self._step_fn = _compiled(online.step_kernel, s, out, *args)
+        self._step_fn(s, out, *args)
         pstate = args[online.STEP_PSTATE]
         self._prev = pstate[:2]  # a view: the general path replaces it, never writes into it
         self._fused_is_reference = bool(pstate[2])
