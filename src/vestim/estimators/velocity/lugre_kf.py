@@ -140,6 +140,23 @@ class KFParams:
 
 
 @njit(**_JIT)
+def _store_prediction(x: np.ndarray, P: np.ndarray, c: int, m0: float, m1: float, m2: float,
+                      s00: float, s01: float, s02: float, s11: float, s12: float,
+                      s22: float) -> None:
+    """Corner ``c``'s predicted state (m0, m1, m2) and symmetric covariance (its upper
+    triangle s00 … s22) into ``x`` (4, 3) and ``P`` (4, 3, 3)."""
+    x[c, 0] = m0
+    x[c, 1] = m1
+    x[c, 2] = m2
+    P[c, 0, 0] = s00
+    P[c, 0, 1] = P[c, 1, 0] = s01
+    P[c, 0, 2] = P[c, 2, 0] = s02
+    P[c, 1, 1] = s11
+    P[c, 1, 2] = P[c, 2, 1] = s12
+    P[c, 2, 2] = s22
+
+
+@njit(**_JIT)
 def _kf_step(x: np.ndarray, P: np.ndarray, c: int, Ak: np.ndarray, Bk: np.ndarray, u: float,
              q: np.ndarray, r: float, y: float, h: np.ndarray, T: np.ndarray, ph: np.ndarray,
              kg: np.ndarray, M: np.ndarray) -> None:
@@ -164,15 +181,7 @@ def _kf_step(x: np.ndarray, P: np.ndarray, c: int, Ak: np.ndarray, Bk: np.ndarra
     s11 = T[1, 1] + q[1]
     s12 = T[1, 0] * a20 + T[1, 1] * a21 + T[1, 2] * a22
     s22 = T[2, 0] * a20 + T[2, 1] * a21 + T[2, 2] * a22 + q[2]
-    x[c, 0] = xp0
-    x[c, 1] = xp1
-    x[c, 2] = xp2
-    P[c, 0, 0] = s00
-    P[c, 0, 1] = P[c, 1, 0] = s01
-    P[c, 0, 2] = P[c, 2, 0] = s02
-    P[c, 1, 1] = s11
-    P[c, 1, 2] = P[c, 2, 1] = s12
-    P[c, 2, 2] = s22
+    _store_prediction(x, P, c, xp0, xp1, xp2, s00, s01, s02, s11, s12, s22)
     if math.isnan(y):
         return
     # Update with μ_x = C x, C = [σ0, σ2, σ1], in the Joseph form of
@@ -252,15 +261,7 @@ def _ukf_step(x: np.ndarray, P: np.ndarray, c: int, Ak: np.ndarray, Bk: np.ndarr
     s00 += q[0]
     s11 += q[1]
     s22 += q[2]
-    x[c, 0] = m0
-    x[c, 1] = m1
-    x[c, 2] = m2
-    P[c, 0, 0] = s00
-    P[c, 0, 1] = P[c, 1, 0] = s01
-    P[c, 0, 2] = P[c, 2, 0] = s02
-    P[c, 1, 1] = s11
-    P[c, 1, 2] = P[c, 2, 1] = s12
-    P[c, 2, 2] = s22
+    _store_prediction(x, P, c, m0, m1, m2, s00, s01, s02, s11, s12, s22)
     if math.isnan(y):
         return
     # P_x̂ŷ = P_m Cᵀ, P_ŷŷ = C P_m Cᵀ + R̄: the linear update, in the same Joseph form as
