@@ -63,6 +63,22 @@ def corners_to_cg(vx_i: np.ndarray, vy_i: np.ndarray, yaw_rate: np.ndarray, xw: 
 
 
 @njit(cache=True, error_model="numpy")
+def yaw_acceleration_kernel(t: np.ndarray, r: np.ndarray, prev: np.ndarray,
+                            out: np.ndarray) -> None:
+    """Yaw acceleration ṙ_k = (r_k − r_{k−1})/(t_k − t_{k−1}) by backward differences, rad/s²,
+    into ``out``; ``prev`` = [t, r] of the sample before ``t[0]`` (NaN t: none, ṙ = 0 there),
+    updated to the last sample's, so consecutive chunks give the whole log's differences. A
+    NaN difference (a NaN rate) is 0."""
+    tp, rp = prev[0], prev[1]
+    for k in range(t.shape[0]):
+        dt = t[k] - tp
+        a = (r[k] - rp) / dt if dt > 0.0 else 0.0
+        out[k] = 0.0 if np.isnan(a) else a
+        tp, rp = t[k], r[k]
+    prev[0], prev[1] = tp, rp
+
+
+@njit(cache=True, error_model="numpy")
 def corner_acc_kernel(ax: np.ndarray, ay: np.ndarray, r: np.ndarray, r_dot: np.ndarray,
                 xw: np.ndarray, yw: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     n = ax.shape[0]

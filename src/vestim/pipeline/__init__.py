@@ -239,12 +239,10 @@ class Pipeline:
 
     def _yaw_acceleration(self, t: np.ndarray, r: np.ndarray) -> np.ndarray:
         """Backward difference of the gyro across chunk boundaries (0 at the first sample)."""
-        tt = np.concatenate(([self._prev[0]], t))
-        rr = np.concatenate(([self._prev[1]], r))
-        with np.errstate(invalid="ignore"):
-            acc = np.diff(rr) / np.diff(tt)
-        self._prev = np.array([t[-1], r[-1]])
-        return np.nan_to_num(acc, nan=0.0)
+        acc = np.empty(t.shape[0])
+        self._prev = np.array(self._prev)  # may be a view of the compiled step's state
+        kin.yaw_acceleration_kernel(t, r, self._prev, acc)
+        return acc
 
     def _corner_cg(self, out: Any, u: Any) -> np.ndarray:
         """Each corner observer's estimate mapped to the CG (n, 4), m/s (001 eq. (33))."""

@@ -60,6 +60,7 @@ from vestim.models.kinematics import (
     slip_angle_kernel,
     slip_ratio_kernel,
     transport_kernel,
+    yaw_acceleration_kernel,
 )
 
 if TYPE_CHECKING:
@@ -174,13 +175,8 @@ def step_kernel(s: np.ndarray, out: np.ndarray, fprm: np.ndarray, nl_prm: np.nda
     sig = sig_ref
     bias = bias_ref
     if fused:
-        dt = t1[0] - pstate[0]
         yaw_acc = np.empty(1)
-        yaw_acc[0] = (r - pstate[1]) / dt if dt == dt and dt != 0.0 else 0.0
-        if np.isnan(yaw_acc[0]):
-            yaw_acc[0] = 0.0
-        pstate[0] = t1[0]
-        pstate[1] = r
+        yaw_acceleration_kernel(t1, r1, pstate, yaw_acc)  # pstate[:2]: the previous (t, r)
         axc = np.empty(1)
         ayc = np.empty(1)
         axc[0] = f_x - bias_ref[0, 0]

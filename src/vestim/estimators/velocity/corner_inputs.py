@@ -28,6 +28,7 @@ from vestim.models.kinematics import (
     corner_positions,
     road_specific_force,
     to_tire_frame,
+    yaw_acceleration_kernel,
 )
 
 REQUIRED = ("t", *[f"omega_{c}" for c in CORNERS], "ax", "ay", "yaw_rate")
@@ -43,9 +44,12 @@ def _col(df: pd.DataFrame, name: str, default: float | None = None) -> np.ndarra
 
 
 def yaw_acceleration(t: np.ndarray, yaw_rate: np.ndarray) -> np.ndarray:
-    """Backward difference ṙ_k = (r_k − r_{k−1})/(t_k − t_{k−1}), 0 at the first sample, rad/s²."""
-    out = np.zeros_like(yaw_rate)
-    out[1:] = np.diff(yaw_rate) / np.diff(t)
+    """Backward difference ṙ_k = (r_k − r_{k−1})/(t_k − t_{k−1}), 0 at the first sample, rad/s²
+    (:func:`~vestim.models.kinematics.yaw_acceleration_kernel`)."""
+    out = np.empty(len(yaw_rate))
+    yaw_acceleration_kernel(np.ascontiguousarray(t, dtype=float),
+                            np.ascontiguousarray(yaw_rate, dtype=float), np.array([np.nan, 0.0]),
+                            out)
     return out
 
 
