@@ -14,6 +14,7 @@ from vestim.estimators import registry
 from vestim.estimators.force.longitudinal import METHODS as FORCE_METHODS
 from vestim.estimators.force.normal import MODES
 from vestim.estimators.fusion import FUSION_METHODS
+from vestim.estimators.velocity.corner import METHODS as CORNER_OBSERVERS
 from vestim.io import load_vehicle
 from vestim.pipeline import Pipeline, PipelineConfig, PipelineConfigError
 from vestim.pipeline.config import PARAMETER_TABLES
@@ -29,6 +30,8 @@ def test_registry_lists_what_the_estimators_accept():
     assert set(registry.names("normal")) == set(MODES)
     assert set(registry.names("fusion")) == set(FUSION_METHODS)
     assert registry.names("velocity") == ("fused", "reference", "kinematic", "kf", "ukf", "lpv")
+    for m in registry.methods("velocity"):  # the corner observer each runs exists
+        assert m.corner is None or m.corner in CORNER_OBSERVERS, (m.name, m.corner)
     for stage in registry.STAGES:
         assert sum(m.default for m in registry.methods(stage)) == 1, stage
         for m in registry.methods(stage):

@@ -5,8 +5,11 @@ Each method registers itself next to its code (``register("velocity", "kf", ...)
 its estimator), and everything that lists or checks methods reads it: the pipeline's config
 validation (:class:`vestim.pipeline.PipelineConfig`), ``vestim methods`` (the CLI's list of
 choices, with their papers and parameter tables) and the conformance suite
-(``tests/test_conformance.py``), which runs every registered method. Adding a method is one
-``register`` call and its dispatch in the pipeline.
+(``tests/test_conformance.py``), which runs every registered method, and the pipeline, which
+builds the corner observer a velocity method names (``corner``). A new corner observer is a
+method of :class:`~vestim.estimators.velocity.corner.CornerVelocityEstimator` and one
+``register`` call; a velocity method of another kind also needs its branch in
+``Pipeline._advance``.
 
 Stages (:data:`STAGES`): ``force`` (longitudinal tire force), ``normal`` (load transfer),
 ``velocity`` (CG and corner velocity) and ``fusion`` (corner estimates to the CG).
@@ -47,6 +50,9 @@ class Method:
             its parameters, in the order they apply.
         needs_wheel_speeds: it cannot run on a log without ``omega_*``.
         default: the stage's default method.
+        corner: for a velocity method, the corner observer it runs
+            (:class:`~vestim.estimators.velocity.corner.CornerVelocityEstimator`'s method), or
+            None.
     """
 
     stage: str
@@ -56,6 +62,7 @@ class Method:
     tables: tuple[str, ...] = ()
     needs_wheel_speeds: bool = True
     default: bool = False
+    corner: str | None = None
 
 
 _REGISTRY: dict[str, dict[str, Method]] = {stage: {} for stage in STAGES}
@@ -63,7 +70,7 @@ _REGISTRY: dict[str, dict[str, Method]] = {stage: {} for stage in STAGES}
 
 def register(stage: str, name: str, summary: str, *, cite: str = "",
              tables: tuple[str, ...] = (), needs_wheel_speeds: bool = True,
-             default: bool = False) -> Callable[[T], T]:
+             default: bool = False, corner: str | None = None) -> Callable[[T], T]:
     """Register method ``name`` of ``stage`` (see :class:`Method`); returns a decorator that
     leaves the decorated estimator unchanged.
 
@@ -80,7 +87,7 @@ def register(stage: str, name: str, summary: str, *, cite: str = "",
         raise ValueError(f"{stage} has two default methods ({name!r} and "
                          f"{next(m.name for m in entries.values() if m.default)!r})")
     entries[name] = Method(stage, name, summary, cite, tuple(tables), needs_wheel_speeds,
-                           default)
+                           default, corner)
 
     def decorate(obj: T) -> T:
         return obj

@@ -117,7 +117,6 @@ from vestim.pipeline.config import (
 __all__ = ["CHUNK", "GAP_S", "HOLD_S", "VELOCITY_METHODS", "Pipeline", "PipelineConfig",
            "PipelineConfigError", "estimate"]
 
-CORNER_METHODS = {"kf": "lugre_kf", "ukf": "lugre_ukf", "lpv": "lpv"}
 
 
 WHEEL_ONLY_OUTPUTS: tuple[str, ...] = (
@@ -172,7 +171,7 @@ class Pipeline:
                                          self.config.reference)
         self.kinematic = KinematicIntegrator(b.wheel_radius)
         method = self.config.velocity
-        corner_method = CORNER_METHODS.get(method, "lugre_kf" if method == "fused" else None)
+        corner_method = registry.lookup("velocity", method).corner
         params: KFParams | LPVParams | None = self.config.corner
         if corner_method == "lpv":
             params = _lpv_params_from_gains(self.config.gains) if self.config.gains else None
