@@ -28,6 +28,8 @@ from vestim.estimators.force.estimator import normalised
 from vestim.estimators.force.lateral import lateral_kernel, split_weights
 from vestim.estimators.force.longitudinal import ukf_kernel
 from vestim.estimators.force.normal import (
+    AttitudeKernelParams,
+    NormalLoadKernelParams,
     attitude_kernel,
     normal_load_params,
     normal_loads_kernel,
@@ -77,9 +79,11 @@ SAMPLE_KEYS = ("t", "omega_fl", "omega_fr", "omega_rl", "omega_rr", "torque_fl",
 
 
 @njit(**_JIT)
-def step_kernel(s: np.ndarray, out: np.ndarray, fprm: np.ndarray, nl_prm: np.ndarray,
+def step_kernel(s: np.ndarray, out: np.ndarray, fprm: np.ndarray,
+                nl_prm: NormalLoadKernelParams,
                 dynamic: bool,
-                att: np.ndarray, att_prm: np.ndarray, lon_prm: np.ndarray, lon_wm: np.ndarray,
+                att: np.ndarray, att_prm: AttitudeKernelParams, lon_prm: np.ndarray,
+                lon_wm: np.ndarray,
                 lon_wc: np.ndarray,
                 lon_x: np.ndarray, lon_P: np.ndarray, lon_ht: np.ndarray, lon_hw: np.ndarray,
                 xw: np.ndarray, yw: np.ndarray, q_lat: np.ndarray, r_lat: np.ndarray,
@@ -96,7 +100,8 @@ def step_kernel(s: np.ndarray, out: np.ndarray, fprm: np.ndarray, nl_prm: np.nda
     """One sample ``s`` (layout :data:`SAMPLE_KEYS` + δ_fl, δ_fr) through the pipeline; the
     output row (the column order of ``Pipeline.run``) is written to ``out``.
 
-    ``att_prm`` as :func:`~vestim.estimators.force.normal.attitude_kernel`'s ``prm``;
+    ``att_prm`` and ``nl_prm`` as :func:`~vestim.estimators.force.normal.attitude_kernel`'s and
+    :func:`~vestim.estimators.force.normal.normal_loads_kernel`'s ``prm``;
     ``fprm`` = [unused ×4, f_rr, R, drag coefficient, I_z,
     load exponent, slip scale, C_y/F_z]; ``nl_prm`` from
     :func:`~vestim.estimators.force.normal.normal_load_params`; ``lon_prm`` = [I_w, R,
@@ -132,7 +137,7 @@ def step_kernel(s: np.ndarray, out: np.ndarray, fprm: np.ndarray, nl_prm: np.nda
     f_x, f_y = fxa[0], fya[0]
     fz = normal_loads_kernel(fxa, fya, fza, roll, pitch, s[S_P:S_P + 1], s[S_Q:S_Q + 1],
                              roll_acc, pitch_acc, nl_prm, dynamic)
-    m = nl_prm[0]
+    m = nl_prm.mass
     teff = torque_less_rolling_resistance(torque, omega, fz, fprm[4] * radius)
     fx = np.empty((1, 4))
     sig_fx = np.full((1, 4), np.nan)

@@ -117,14 +117,13 @@ def test_normal_load_sigma_against_parameter_monte_carlo() -> None:
     L = VEH.body.wheelbase
     fz = np.empty((n, 4))
     for k in range(n):
-        q = base.copy()
-        q[0] *= 1.0 + p.sigma_mass_rel * rng.standard_normal()
-        q[2] += p.sigma_cg_height * rng.standard_normal()
-        q[4] += p.sigma_roll_center * rng.standard_normal()
-        q[11] += p.sigma_roll_share * rng.standard_normal()
+        mass = base.mass * (1.0 + p.sigma_mass_rel * rng.standard_normal())
+        h = base.cg_height + p.sigma_cg_height * rng.standard_normal()
+        h_rc = base.roll_center_height + p.sigma_roll_center * rng.standard_normal()
+        share = base.roll_stiffness_front_share + p.sigma_roll_share * rng.standard_normal()
         dl = p.sigma_lf_rel * L * rng.standard_normal()
-        q[9] += dl
-        q[10] -= dl
+        q = base._replace(mass=mass, cg_height=h, roll_center_height=h_rc,
+                          roll_stiffness_front_share=share, lf=base.lf + dl, lr=base.lr - dl)
         fz[k] = normal_loads_kernel(np.array([ax]), np.array([ay]), np.array([9.81]),
                                     np.zeros(1), np.zeros(1), np.full(1, np.nan),
                                     np.full(1, np.nan), np.zeros(1), np.zeros(1), q, False)[0]

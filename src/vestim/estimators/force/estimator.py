@@ -460,13 +460,9 @@ class ForceEstimator:
                 self._c_roll = roll
             if pitch is not None:  # pitch_gradient = −dθ/da_x (the nose rises accelerating)
                 self._c_pitch = -pitch
-        self._att_prm = np.array([self.config.roll_tau, self.config.pitch_gain, self._c_roll,
-                                  self._c_pitch, b.wheel_radius, self.config.rate_filter_hz,
-                                  {"fwd": 1.0, "rwd": 0.0}.get(b.drivetrain, -1.0),
-                                  self.config.roll_slide,
-                                  self.config.roll_gain if "suspension" in vehicle.given
-                                  else 0.0,
-                                  self.config.roll_bias_tau])
+        self._att_prm = nrm.attitude_params(self.config, self._c_roll, self._c_pitch,
+                                            b.wheel_radius, b.drivetrain,
+                                            "suspension" in vehicle.given)
         self._xw = np.array([b.lf, b.lf, -b.lr, -b.lr])
         self._yw = 0.5 * np.array([b.track_f, -b.track_f, b.track_r, -b.track_r])
         self._w4, self._c4, self._tau4 = ukf_weights(4)
@@ -597,7 +593,7 @@ class ForceEstimator:
             ax = np.empty(n)
             if u.omega_measured:
                 wheel_reference_speed(u.t, u.omega, u.yaw_rate, self._yw, radius,
-                                      int(self._att_prm[6]), AX_TAU[0], AX_TAU[1],
+                                      self._att_prm.undriven_axle, AX_TAU[0], AX_TAU[1],
                                       self._ax_state, ax)
             else:
                 v, tau = ((u.vehicle_speed, AX_TAU) if u.vehicle_speed is not None

@@ -37,7 +37,7 @@ roll term is the sprung CG's lateral shift (h − h_rc) sin φ, not h_rc sin φ.
 
 from __future__ import annotations
 
-from typing import Any
+from typing import Any, NamedTuple
 
 import numpy as np
 from numba import njit
@@ -45,22 +45,48 @@ from numba import njit
 from vestim.constants import G
 from vestim.io.vehicle import Vehicle
 from vestim.models.kinematics import middle_wheel_speed
+from vestim.params import pack
 
 _JIT: dict[str, Any] = {"cache": True, "error_model": "numpy"}
 
 MODES: tuple[str, ...] = ("static", "dynamic")
 
 
+class AttitudeKernelParams(NamedTuple):
+    """Parameters of :func:`attitude_kernel` (see there), made by :func:`attitude_params`."""
+
+    roll_tau: float  # τ_φ, s
+    pitch_gain: float  # L_θ, 1/s
+    c_roll: float  # quasi-static roll per a_y, rad per m/s²
+    c_pitch: float  # quasi-static pitch per a_x, rad per m/s²
+    radius: float  # R, m
+    rate_filter_hz: float  # f_acc, Hz
+    undriven_axle: int  # 0 front, 1 rear, −1 none (four driven)
+    roll_slide: float  # e_φ, rad
+    roll_gain: float  # L_φ, 1/s (0: no stated [suspension])
+    roll_bias_tau: float  # τ_b, s
+
+
+def attitude_params(config: Any, c_roll: float, c_pitch: float, radius: float,
+                    drivetrain: str, suspension_given: bool) -> AttitudeKernelParams:
+    """:class:`AttitudeKernelParams` from the force stage's config (its ``roll_tau``,
+    ``pitch_gain``, ``rate_filter_hz``, ``roll_slide``, ``roll_gain``, ``roll_bias_tau``)
+    and the vehicle's values; L_φ only with a stated ``[suspension]``."""
+    return pack(AttitudeKernelParams, config, c_roll=c_roll, c_pitch=c_pitch, radius=radius,
+                undriven_axle={"fwd": 1, "rwd": 0}.get(drivetrain, -1),
+                roll_gain=config.roll_gain if suspension_given else 0.0)
+
+
 @njit(**_JIT)
 def attitude_kernel(t: np.ndarray, ax: np.ndarray, ay: np.ndarray, p: np.ndarray,
-                    q: np.ndarray, r: np.ndarray, omega: np.ndarray, prm: np.ndarray,
+                    q: np.ndarray, r: np.ndarray, omega: np.ndarray, prm: AttitudeKernelParams,
                     state: np.ndarray, roll: np.ndarray, pitch: np.ndarray,
                     roll_acc: np.ndarray, pitch_acc: np.ndarray) -> None:
     """Attitude filter over a chunk, in place on ``state`` = [φ̂, θ̂, t_prev, started,
     p̄, ṗ̄, q̄, q̇̄, b̂_p].
 
-    ``prm`` = [τ_φ, L_θ, c_roll, c_pitch, R, f_acc, undriven axle (0 front, 1 rear, −1
-    none), e_φ, L_φ, τ_b].
+    ``prm``: :class:`AttitudeKernelParams` (τ_φ, L_θ, c_roll, c_pitch, R, f_acc, the undriven
+    axle, e_φ, L_φ, τ_b).
 
     Roll, with a roll-rate channel, is a complementary filter of the gyro and gravity that
     needs no suspension parameters:
@@ -90,12 +116,13 @@ def attitude_kernel(t: np.ndarray, ax: np.ndarray, ay: np.ndarray, p: np.ndarray
     corner frequency f_acc (Hz; 0 where the rate is missing). A gyro with 0.005 rad/s of
     white noise at 200 Hz gives ≈ 0.05 rad/s² of noise at 8 Hz.
     """
-    tau, pitch_gain, c_roll, c_pitch, radius = prm[0], prm[1], prm[2], prm[3], prm[4]
-    wn = 2.0 * np.pi * prm[5]
-    free = int(prm[6])
-    e_slide = prm[7]
-    model_gain = prm[8]
-    tau_b = prm[9]
+    tau, pitch_gain, c_roll, c_pitch, radius = (prm.roll_tau, prm.pitch_gain, prm.c_roll,
+                                                prm.c_pitch, prm.radius)
+    wn = 2.0 * np.pi * prm.rate_filter_hz
+    free = prm.undriven_axle
+    e_slide = prm.roll_slide
+    model_gain = prm.roll_gain
+    tau_b = prm.roll_bias_tau
     k_max, phi_0 = 0.02, 0.01
     for k in range(t.shape[0]):
         if free >= 0:
@@ -152,30 +179,55 @@ def attitude_kernel(t: np.ndarray, ax: np.ndarray, ay: np.ndarray, p: np.ndarray
         pitch_acc[k] = state[7]
 
 
-def normal_load_params(vehicle: Vehicle) -> np.ndarray:
-    """Parameters of :func:`normal_loads_kernel`: [m, L, h, h_pc, h_rc, k_θ, c_θ, k_φ, c_φ,
-    l_f, l_r, front roll-stiffness share, t_f, t_r, I_x, I_y] (SI) from the vehicle file."""
+class NormalLoadKernelParams(NamedTuple):
+    """Parameters of :func:`normal_loads_kernel` (SI), made by :func:`normal_load_params`."""
+
+    mass: float  # m, kg
+    wheelbase: float  # L, m
+    cg_height: float  # h, m
+    pitch_center_height: float  # h_pc, m
+    roll_center_height: float  # h_rc, m
+    pitch_stiffness: float  # k_θ, N m/rad
+    pitch_damping: float  # c_θ, N m s/rad
+    roll_stiffness: float  # k_φ, N m/rad
+    roll_damping: float  # c_φ, N m s/rad
+    lf: float  # CG to front axle, m
+    lr: float  # CG to rear axle, m
+    roll_stiffness_front_share: float  # s_f
+    track_f: float  # t_f, m
+    track_r: float  # t_r, m
+    roll_inertia: float  # I_x, kg m²
+    pitch_inertia: float  # I_y, kg m²
+
+
+def normal_load_params(vehicle: Vehicle) -> NormalLoadKernelParams:
+    """:class:`NormalLoadKernelParams` from the vehicle file's ``[vehicle]`` and
+    ``[suspension]`` (the latter's defaults where the file has none)."""
     b, s = vehicle.body, vehicle.suspension
-    return np.array([b.mass, b.wheelbase, b.cg_height, s.pitch_center_height,
-                     b.roll_center_height, s.pitch_stiffness, s.pitch_damping, s.roll_stiffness,
-                     s.roll_damping, b.lf, b.lr, s.roll_stiffness_front_share, b.track_f,
-                     b.track_r, s.roll_inertia, s.pitch_inertia])
+    return pack(NormalLoadKernelParams, b, pitch_center_height=s.pitch_center_height,
+                pitch_stiffness=s.pitch_stiffness, pitch_damping=s.pitch_damping,
+                roll_stiffness=s.roll_stiffness, roll_damping=s.roll_damping,
+                roll_stiffness_front_share=s.roll_stiffness_front_share,
+                roll_inertia=s.roll_inertia, pitch_inertia=s.pitch_inertia)
 
 
 @njit(**_JIT)
 def normal_loads_kernel(f_x: np.ndarray, f_y: np.ndarray, f_z: np.ndarray, roll: np.ndarray,
                         pitch: np.ndarray, roll_rate: np.ndarray, pitch_rate: np.ndarray,
-                        roll_acc: np.ndarray, pitch_acc: np.ndarray, prm: np.ndarray,
-                        dynamic: bool) -> np.ndarray:
+                        roll_acc: np.ndarray, pitch_acc: np.ndarray,
+                        prm: NormalLoadKernelParams, dynamic: bool) -> np.ndarray:
     """Normal load per corner (n, 4) in N; ``prm`` from :func:`normal_load_params`.
 
     See the module docstring for the equations. In dynamic mode a NaN rate falls back to
     the static elastic moment, sample by sample.
     """
-    m, L, h, h_pc, h_rc = prm[0], prm[1], prm[2], prm[3], prm[4]
-    k_th, c_th, k_ph, c_ph = prm[5], prm[6], prm[7], prm[8]
-    lf, lr, sf, t_f, t_r = prm[9], prm[10], prm[11], prm[12], prm[13]
-    i_x, i_y = prm[14], prm[15]
+    m, L, h = prm.mass, prm.wheelbase, prm.cg_height
+    h_pc, h_rc = prm.pitch_center_height, prm.roll_center_height
+    k_th, c_th = prm.pitch_stiffness, prm.pitch_damping
+    k_ph, c_ph = prm.roll_stiffness, prm.roll_damping
+    lf, lr, sf = prm.lf, prm.lr, prm.roll_stiffness_front_share
+    t_f, t_r = prm.track_f, prm.track_r
+    i_x, i_y = prm.roll_inertia, prm.pitch_inertia
     n = f_x.shape[0]
     out = np.empty((n, 4))
     for k in range(n):
