@@ -26,7 +26,7 @@ from numba import njit
 
 from vestim.estimators.force.estimator import normalised
 from vestim.estimators.force.lateral import lateral_kernel, split_weights
-from vestim.estimators.force.longitudinal import ukf_kernel
+from vestim.estimators.force.longitudinal import UKFKernelParams, ukf_kernel
 from vestim.estimators.force.normal import (
     AttitudeKernelParams,
     NormalLoadKernelParams,
@@ -82,9 +82,8 @@ SAMPLE_KEYS = ("t", "omega_fl", "omega_fr", "omega_rl", "omega_rr", "torque_fl",
 def step_kernel(s: np.ndarray, out: np.ndarray, fprm: np.ndarray,
                 nl_prm: NormalLoadKernelParams,
                 dynamic: bool,
-                att: np.ndarray, att_prm: AttitudeKernelParams, lon_prm: np.ndarray,
-                lon_wm: np.ndarray,
-                lon_wc: np.ndarray,
+                att: np.ndarray, att_prm: AttitudeKernelParams, lon_prm: UKFKernelParams,
+                lon_wm: np.ndarray, lon_wc: np.ndarray, lon_tau: float,
                 lon_x: np.ndarray, lon_P: np.ndarray, lon_ht: np.ndarray, lon_hw: np.ndarray,
                 xw: np.ndarray, yw: np.ndarray, q_lat: np.ndarray, r_lat: np.ndarray,
                 w4: np.ndarray, c4: np.ndarray, tau4: float, lat_x: np.ndarray,
@@ -104,9 +103,9 @@ def step_kernel(s: np.ndarray, out: np.ndarray, fprm: np.ndarray,
     :func:`~vestim.estimators.force.normal.normal_loads_kernel`'s ``prm``;
     ``fprm`` = [unused ×4, f_rr, R, drag coefficient, I_z,
     load exponent, slip scale, C_y/F_z]; ``nl_prm`` from
-    :func:`~vestim.estimators.force.normal.normal_load_params`; ``lon_prm`` = [I_w, R,
-    r_ω, r_T, q_acc, q_acc_high, q_T, ω̇_high, p0_acc, τ, q_acc_innov, α, c_m, c_1, then
-    UKFParams.noise_online (1/0) … resolve_time in the kernel's order];
+    :func:`~vestim.estimators.force.normal.normal_load_params`; ``lon_prm``, ``lon_wm``, ``lon_wc``,
+    ``lon_tau`` as :func:`~vestim.estimators.force.longitudinal.ukf_kernel`'s ``prm``, ``wm``,
+    ``wc``, ``tau``;
     ``kf_prm`` = [κ, σ0, σ1, σ2,
     r, r_high, step_ref, λ_u, λ_l, β_e, ω̇_th, min speed, μ release]; ``pstate`` =
     [t_prev, r_prev, fused filter still identical to the plain one (1/0)]; ``stiff_prm``,
@@ -142,12 +141,8 @@ def step_kernel(s: np.ndarray, out: np.ndarray, fprm: np.ndarray,
     fx = np.empty((1, 4))
     sig_fx = np.full((1, 4), np.nan)
     high = np.empty((1, 4), dtype=np.bool_)
-    ukf_kernel(t1, omega, teff, lon_prm[0], lon_prm[1], lon_prm[2], lon_prm[3], lon_prm[4],
-               lon_prm[5], lon_prm[6], lon_prm[7], lon_prm[8], lon_wm, lon_wc, lon_prm[9],
-               lon_x, lon_P, lon_ht, lon_hw, fx, sig_fx, high, lon_prm[10], lon_prm[11],
-               lon_prm[12], lon_prm[13], lon_prm[14] > 0.5, lon_prm[15], lon_prm[16],
-               lon_prm[17], lon_prm[18], lon_prm[19], lon_prm[20], lon_prm[21], lon_prm[22],
-               lon_prm[23], lon_prm[24])
+    ukf_kernel(t1, omega, teff, lon_prm, lon_wm, lon_wc, lon_tau, lon_x, lon_P, lon_ht, lon_hw,
+               fx, sig_fx, high)
     w_mean = 0.25 * (omega[0, 0] + omega[0, 1] + omega[0, 2] + omega[0, 3])
     drag = np.empty(1)
     drag[0] = fprm[6] * (radius * w_mean) ** 2
@@ -281,7 +276,7 @@ def step_kernel(s: np.ndarray, out: np.ndarray, fprm: np.ndarray,
     out[k + 3] = c_y[0]
 
 
-STEP_PSTATE = 28  # position of pstate in build_step's tuple
+STEP_PSTATE = 29  # position of pstate in build_step's tuple
 
 
 def build_step(pipe: Pipeline) -> tuple[Any, ...] | None:
@@ -300,14 +295,7 @@ def build_step(pipe: Pipeline) -> tuple[Any, ...] | None:
                      b.wheel_radius, fe._drag_coef, b.yaw_inertia, lp.load_exponent,
                      lp.slip_scale, 0.0])
     lon = fe._lon
-    u = lon.ukf
-    lon_prm = np.array([lon.iw, lon.radius, u.r_omega, u.r_torque, u.q_acc, u.q_acc_high,
-                        u.q_torque, u.omega_dot_high, u.p0_acc, lon._tau, u.q_acc_innov,
-                        u.innov_alpha, u.innov_mean, u.innov_one, float(u.noise_online),
-                        u.noise_prior_n, u.noise_gain_min, u.sigma_omega_min,
-                        u.sigma_torque_min, u.q_torque_innov, u.innov_torque_one,
-                        u.innov_torque_mean, u.innov_torque_share, u.resolve_time,
-                        u.q_torque_switched])
+    lon_prm = lon.kernel_params
     ref, fus = pipe.reference, pipe.fused
     fused = cfg.velocity == "fused"
     corner = pipe.corner
@@ -334,8 +322,8 @@ def build_step(pipe: Pipeline) -> tuple[Any, ...] | None:
                            ap.threshold])
     pstate = np.array([pipe._prev[0], pipe._prev[1], 1.0 if pipe._fused_is_reference else 0.0])
     force = (fprm, normal_load_params(veh), fc.normal == "dynamic", fe._att, fe._att_prm,
-             lon_prm, lon._wm,
-             lon._wc, lon._x, lon._P, lon._hist_t, lon._hist_w, fe._xw, fe._yw, fe._q_lat,
+             lon_prm, lon._wm, lon._wc, lon._tau, lon._x, lon._P, lon._hist_t, lon._hist_w,
+             fe._xw, fe._yw, fe._q_lat,
              fe._r_lat, fe._w4, fe._c4, float(fe._tau4), fe._lat_x, fe._lat_P, fe._lat_state,
              pipe._stiff_prm, pipe._stiff_state)
     velocity = (ref.kernel_params, ref.state, fused, fus.state, pstate)

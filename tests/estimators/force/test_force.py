@@ -103,12 +103,8 @@ def test_ukf_equals_linear_kalman_filter():
     sig = np.empty((n, 4))
     high = np.empty((n, 4), dtype=bool)
     iw, r = SUV.body.wheel_inertia, SUV.body.wheel_radius
-    lon.ukf_kernel(t, omega, torque, iw, r, p.r_omega, p.r_torque, p.q_acc, p.q_acc_high,
-                   p.q_torque, p.omega_dot_high, p.p0_acc, wm, wc, tau, x, P, ht, hw, fx, sig, high,
-                   p.q_acc_innov, p.innov_alpha, p.innov_mean, p.innov_one, p.noise_online,
-                   p.noise_prior_n, p.noise_gain_min, p.sigma_omega_min, p.sigma_torque_min,
-                   p.q_torque_innov, p.innov_torque_one, p.innov_torque_mean,
-                   p.innov_torque_share, p.resolve_time, p.q_torque_switched)
+    lon.ukf_kernel(t, omega, torque, lon.ukf_params(p, iw, r), wm, wc, tau, x, P, ht, hw, fx,
+                   sig, high)
     for c in range(4):
         xk = np.array([omega[0, c], 0.0, torque[0, c]])
         Pk = np.diag([p.r_omega, p.p0_acc, p.r_torque])

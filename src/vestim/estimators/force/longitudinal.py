@@ -26,14 +26,14 @@ Arrays have a trailing corner axis (fl, fr, rl, rr). Units: ω rad/s, T N m, F N
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Any
+from typing import Any, NamedTuple
 
 import numpy as np
 from numba import njit
 
 from vestim.filters.ukf import sigma_points, ukf_weights
 from vestim.io.vehicle import Vehicle
-from vestim.params import check_ranges
+from vestim.params import check_ranges, pack
 
 _JIT: dict[str, Any] = {"cache": True, "error_model": "numpy"}
 
@@ -266,18 +266,46 @@ def _track_log_scale(log_m: float, d: float, gain: float) -> float:
     return log_m + (0.5 * gain if abs(d) > np.exp(log_m) else -0.5 * gain)
 
 
+class UKFKernelParams(NamedTuple):
+    """Parameters of :func:`ukf_kernel`: the wheel's I_w (kg m²) and R (m) and the
+    :class:`UKFParams` fields it reads (units there), made by :func:`ukf_params`."""
+
+    iw: float
+    radius: float
+    r_omega: float
+    r_torque: float
+    q_acc: float
+    q_acc_high: float
+    q_torque: float
+    omega_dot_high: float
+    p0_acc: float
+    q_acc_innov: float
+    innov_alpha: float
+    innov_mean: float
+    innov_one: float
+    noise_online: bool
+    noise_prior_n: float
+    noise_gain_min: float
+    sigma_omega_min: float
+    sigma_torque_min: float
+    q_torque_innov: float
+    innov_torque_one: float
+    innov_torque_mean: float
+    innov_torque_share: float
+    resolve_time: float
+    q_torque_switched: float
+
+
+def ukf_params(params: UKFParams, iw: float, radius: float) -> UKFKernelParams:
+    """:class:`UKFKernelParams` from the validated :class:`UKFParams` and the wheel."""
+    return pack(UKFKernelParams, params, iw=iw, radius=radius)
+
+
 @njit(**_JIT)
-def ukf_kernel(t: np.ndarray, omega: np.ndarray, torque: np.ndarray, iw: float, radius: float,
-               r_omega: float, r_torque: float, q_acc: float, q_acc_high: float,
-               q_torque: float, omega_dot_high: float, p0_acc: float, wm: np.ndarray,
-               wc: np.ndarray, tau: float, x: np.ndarray, P: np.ndarray, hist_t: np.ndarray,
-               hist_w: np.ndarray, fx: np.ndarray, sigma: np.ndarray, high: np.ndarray,
-               q_acc_innov: float, innov_alpha: float, innov_mean: float,
-               innov_one: float, noise_online: bool, noise_prior_n: float,
-               noise_gain_min: float, sigma_omega_min: float, sigma_torque_min: float,
-               q_torque_innov: float, innov_torque_one: float, innov_torque_mean: float,
-               innov_torque_share: float, resolve_time: float,
-               q_torque_switched: float) -> None:
+def ukf_kernel(t: np.ndarray, omega: np.ndarray, torque: np.ndarray, prm: UKFKernelParams,
+               wm: np.ndarray, wc: np.ndarray, tau: float, x: np.ndarray, P: np.ndarray,
+               hist_t: np.ndarray, hist_w: np.ndarray, fx: np.ndarray, sigma: np.ndarray,
+               high: np.ndarray) -> None:
     """Advance the four corner UKFs on x = [ω, ω̇, T] over a chunk (in place on x (4, UKF_COLS), P (4, 3, 3)).
 
     Process: ω_{k+1} = ω_k + Δt ω̇_k + ½Δt² … (ω̇ held), ω̇ and T random walks with
@@ -320,6 +348,16 @@ def ukf_kernel(t: np.ndarray, omega: np.ndarray, torque: np.ndarray, iw: float, 
 
     ``x[:, :3]`` is the state; the other columns are the X_* bookkeeping above.
     """
+    iw, radius, r_omega, r_torque = prm.iw, prm.radius, prm.r_omega, prm.r_torque
+    q_acc, q_acc_high, q_torque = prm.q_acc, prm.q_acc_high, prm.q_torque
+    omega_dot_high, p0_acc, q_acc_innov = prm.omega_dot_high, prm.p0_acc, prm.q_acc_innov
+    innov_alpha, innov_mean, innov_one = prm.innov_alpha, prm.innov_mean, prm.innov_one
+    noise_online, noise_prior_n, noise_gain_min = (prm.noise_online, prm.noise_prior_n,
+                                                   prm.noise_gain_min)
+    sigma_omega_min, sigma_torque_min = prm.sigma_omega_min, prm.sigma_torque_min
+    q_torque_innov, innov_torque_one = prm.q_torque_innov, prm.innov_torque_one
+    innov_torque_mean, innov_torque_share = prm.innov_torque_mean, prm.innov_torque_share
+    resolve_time, q_torque_switched = prm.resolve_time, prm.q_torque_switched
     n = t.shape[0]
     m = hist_t.shape[0]
     npts = 7
@@ -629,6 +667,7 @@ class LongitudinalEstimator:
         self.iw = vehicle.body.wheel_inertia
         self.radius = vehicle.body.wheel_radius
         self.ukf = ukf or UKFParams()
+        self.kernel_params = ukf_params(self.ukf, self.iw, self.radius)
         self.pid = pid or PIDParams()
         self.uio = uio or UIOParams()
         dim = 3 if method == "ukf" else 2
@@ -658,14 +697,8 @@ class LongitudinalEstimator:
         u, pid, uio = self.ukf, self.pid, self.uio
         if self.method == "ukf":
             high = np.empty((n, 4), dtype=np.bool_)
-            ukf_kernel(t, omega, torque, self.iw, self.radius, u.r_omega, u.r_torque, u.q_acc,
-                       u.q_acc_high, u.q_torque, u.omega_dot_high, u.p0_acc, self._wm, self._wc,
-                       self._tau, self._x, self._P, self._hist_t, self._hist_w, fx, sigma, high,
-                       u.q_acc_innov, u.innov_alpha, u.innov_mean, u.innov_one,
-                       u.noise_online, u.noise_prior_n, u.noise_gain_min, u.sigma_omega_min,
-                       u.sigma_torque_min, u.q_torque_innov, u.innov_torque_one,
-                       u.innov_torque_mean, u.innov_torque_share, u.resolve_time,
-                       u.q_torque_switched)
+            ukf_kernel(t, omega, torque, self.kernel_params, self._wm, self._wc, self._tau,
+                       self._x, self._P, self._hist_t, self._hist_w, fx, sigma, high)
         elif self.method == "ukf_rw":
             high = np.empty((n, 4), dtype=np.bool_)
             ukf_rw_kernel(t, omega, torque, self.iw, self.radius, u.r_omega, u.r_torque,
