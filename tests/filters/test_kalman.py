@@ -33,6 +33,15 @@ def _assert_psd_symmetric(P: np.ndarray) -> None:
     assert np.linalg.eigvalsh(P).min() >= -1e-12 * np.abs(P).max()
 
 
+def _assert_textbook(xk: np.ndarray, Pk: np.ndarray, xr: np.ndarray, Pr: np.ndarray,
+                     P0: np.ndarray) -> None:
+    """The kernel's (xk, Pk) equal the textbook (xr, Pr) to round-off of the prior P0's scale,
+    and Pk is exactly symmetric and PSD."""
+    np.testing.assert_allclose(xk, xr, rtol=1e-9, atol=1e-9 * np.abs(xr).max())
+    np.testing.assert_allclose(Pk, Pr, rtol=0, atol=1e-9 * np.abs(P0).max())
+    _assert_psd_symmetric(Pk)
+
+
 @settings(max_examples=200, deadline=None)
 @given(_case)
 def test_scalar_update_is_the_textbook_update(case):
@@ -48,10 +57,7 @@ def test_scalar_update_is_the_textbook_update(case):
     xk, Pk = x.copy(), P.copy()
     s = kalman_update_scalar(xk, Pk, h, r, nu, np.empty(n), np.empty(n), np.empty((n, n)))
     assert np.isclose(s, h @ P @ h + r, rtol=1e-12)
-    scale = np.abs(P).max()
-    np.testing.assert_allclose(xk, xr, rtol=1e-9, atol=1e-9 * np.abs(xr).max())
-    np.testing.assert_allclose(Pk, Pr, rtol=0, atol=1e-9 * scale)
-    _assert_psd_symmetric(Pk)
+    _assert_textbook(xk, Pk, xr, Pr, P)
 
 
 @settings(max_examples=200, deadline=None)
@@ -74,9 +80,7 @@ def test_vector_update_is_the_textbook_update(case):
     np.testing.assert_allclose(S, H @ P @ H.T + R, rtol=1e-12)
     np.testing.assert_allclose(K, np.linalg.solve(H @ P @ H.T + R, H @ P).T, rtol=1e-8,
                                atol=1e-10 * np.abs(K).max())
-    np.testing.assert_allclose(xk, xr, rtol=1e-9, atol=1e-9 * np.abs(xr).max())
-    np.testing.assert_allclose(Pk, Pr, rtol=0, atol=1e-9 * np.abs(P).max())
-    _assert_psd_symmetric(Pk)
+    _assert_textbook(xk, Pk, xr, Pr, P)
 
 
 @settings(max_examples=100, deadline=None)
