@@ -123,6 +123,23 @@ def kalman_update_scalar(x: np.ndarray, P: np.ndarray, h: np.ndarray, r: float, 
 
 
 @njit(**_JIT)
+def _gain_and_state(x: np.ndarray, S: np.ndarray, C: np.ndarray, nu: np.ndarray, L: np.ndarray,
+                    K: np.ndarray) -> bool:
+    """K = C S⁻¹ by a Cholesky solve (C (n, m) the state-measurement cross covariance, S (m, m)
+    the innovation covariance; L (m, m) its factor), then x̂ ← x̂ + K ν. Returns False when S
+    needed the Cholesky pivot floor."""
+    ok = cholesky(S, L)
+    for i in range(x.shape[0]):
+        chol_solve(L, C[i], K[i])
+    for i in range(x.shape[0]):
+        acc = x[i]
+        for a in range(nu.shape[0]):
+            acc += K[i, a] * nu[a]
+        x[i] = acc
+    return ok
+
+
+@njit(**_JIT)
 def kalman_update(x: np.ndarray, P: np.ndarray, H: np.ndarray, R: np.ndarray, nu: np.ndarray,
                   PHt: np.ndarray, S: np.ndarray, L: np.ndarray, K: np.ndarray,
                   M: np.ndarray) -> bool:
@@ -148,14 +165,7 @@ def kalman_update(x: np.ndarray, P: np.ndarray, H: np.ndarray, R: np.ndarray, nu
             for j in range(n):
                 acc += H[a, j] * PHt[j, b]
             S[a, b] = acc + R[a, b]
-    ok = cholesky(S, L)
-    for i in range(n):
-        chol_solve(L, PHt[i], K[i])
-    for i in range(n):
-        acc = x[i]
-        for a in range(m):
-            acc += K[i, a] * nu[a]
-        x[i] = acc
+    ok = _gain_and_state(x, S, PHt, nu, L, K)
     _joseph(P, K, H, R, PHt, M)
     return ok
 
@@ -172,14 +182,7 @@ def ukf_update(x: np.ndarray, P: np.ndarray, Pxy: np.ndarray, Pyy: np.ndarray, n
     """
     n = x.shape[0]
     m = Pyy.shape[0]
-    ok = cholesky(Pyy, L)
-    for i in range(n):
-        chol_solve(L, Pxy[i], K[i])
-    for i in range(n):
-        acc = x[i]
-        for a in range(m):
-            acc += K[i, a] * nu[a]
-        x[i] = acc
+    ok = _gain_and_state(x, Pyy, Pxy, nu, L, K)
     for i in range(n):
         for j in range(n):
             acc = P[i, j]

@@ -66,7 +66,7 @@ import numpy as np
 from numba import njit
 
 from vestim.filters.linalg import cholesky
-from vestim.filters.ukf import sigma_points
+from vestim.filters.ukf import sigma_points, weighted_cross, weighted_mean
 from vestim.params import check_ranges
 
 _JIT: dict[str, Any] = {"cache": True, "error_model": "numpy"}
@@ -194,25 +194,6 @@ def _body_forces(x: np.ndarray, fx: np.ndarray, cd: np.ndarray, sd: np.ndarray, 
 
 
 @njit(**_JIT)
-def _mean(points: np.ndarray, wm: np.ndarray, out: np.ndarray) -> None:
-    out[:] = 0.0
-    for i in range(points.shape[0]):
-        for j in range(points.shape[1]):
-            out[j] += wm[i] * points[i, j]
-
-
-@njit(**_JIT)
-def _cross(a: np.ndarray, am: np.ndarray, b: np.ndarray, bm: np.ndarray, wc: np.ndarray,
-           out: np.ndarray) -> None:
-    out[:, :] = 0.0
-    for i in range(a.shape[0]):
-        for r in range(a.shape[1]):
-            da = wc[i] * (a[i, r] - am[r])
-            for c in range(b.shape[1]):
-                out[r, c] += da * (b[i, c] - bm[c])
-
-
-@njit(**_JIT)
 def lateral_kernel(t: np.ndarray, fx: np.ndarray, delta: np.ndarray, weights: np.ndarray,
                    f_x: np.ndarray, f_y: np.ndarray, yaw_rate: np.ndarray, drag: np.ndarray,
                    fz: np.ndarray, speed: np.ndarray, mass: float, iz: float, xw: np.ndarray, yw: np.ndarray,
@@ -276,8 +257,8 @@ def lateral_kernel(t: np.ndarray, fx: np.ndarray, delta: np.ndarray, weights: np
             for i in range(npts):
                 _, _, mz = _body_forces(pts[i], state[2:6], cd_prev, sd_prev, rear_w, xw, yw)
                 pts[i, YAW] += dt * mz / iz
-            _mean(pts, wm, xm)
-            _cross(pts, xm, pts, xm, wc, Pm)
+            weighted_mean(pts, wm, xm)
+            weighted_cross(pts, xm, pts, xm, wc, Pm)
             for j in range(N_X):
                 Pm[j, j] += q[j] * dt * (state[12] if j < 2 else 1.0)
             # Update with [m f_x + drag, m f_y, r, 0]. The measurement is affine in
