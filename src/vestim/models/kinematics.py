@@ -63,6 +63,17 @@ def corners_to_cg(vx_i: np.ndarray, vy_i: np.ndarray, yaw_rate: np.ndarray, xw: 
 
 
 @njit(cache=True, error_model="numpy")
+def euler_rates(p: float, q: float, r: float, roll: float, pitch: float) -> tuple[float, float]:
+    """Roll and pitch rates φ̇, θ̇ (rad/s) of the Z-Y-X Euler angles from the body rates
+    p, q, r (rad/s) of the gyro at roll φ and pitch θ (rad):
+        φ̇ = p + (q sin φ + r cos φ) tan θ,   θ̇ = q cos φ − r sin φ.
+    A rolled body turning at r reads r sin φ on its pitch gyro (a 0.33 rad/s turn at 4.4°
+    of roll: 0.025 rad/s) that is not a pitch motion."""
+    s, c = np.sin(roll), np.cos(roll)
+    return p + (q * s + r * c) * np.tan(pitch), q * c - r * s
+
+
+@njit(cache=True, error_model="numpy")
 def yaw_acceleration_kernel(t: np.ndarray, r: np.ndarray, prev: np.ndarray,
                             out: np.ndarray) -> None:
     """Yaw acceleration ṙ_k = (r_k − r_{k−1})/(t_k − t_{k−1}) by backward differences, rad/s²,

@@ -462,9 +462,13 @@ def _record(row: np.ndarray, t: float, x: np.ndarray, p: np.ndarray, out: np.nda
     row[9] = out[O_AX]
     row[10] = out[O_AY]
     row[11] = out[O_AZ]
-    row[12] = x[YAW_RATE]
-    row[13] = x[ROLL_RATE]
-    row[14] = x[PITCH_RATE]
+    # The gyro measures body rates: the Euler rates φ̇, θ̇, ψ̇ of the rolled and pitched
+    # body (Z-Y-X) rotated into it; a rolled body in a turn reads ψ̇ sin φ on its pitch axis.
+    sp, cp = math.sin(x[ROLL]), math.cos(x[ROLL])
+    st, ct = math.sin(x[PITCH]), math.cos(x[PITCH])
+    row[12] = x[YAW_RATE] * ct * cp - x[PITCH_RATE] * sp
+    row[13] = x[ROLL_RATE] - x[YAW_RATE] * st
+    row[14] = x[PITCH_RATE] * cp + x[YAW_RATE] * ct * sp
     row[15] = delta[0]
     row[16] = delta[1]
     row[17] = x[VX]

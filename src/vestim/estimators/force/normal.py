@@ -44,7 +44,7 @@ from numba import njit
 
 from vestim.constants import G
 from vestim.io.vehicle import Vehicle
-from vestim.models.kinematics import middle_wheel_speed
+from vestim.models.kinematics import euler_rates, middle_wheel_speed
 from vestim.params import pack
 
 _JIT: dict[str, Any] = {"cache": True, "error_model": "numpy"}
@@ -90,10 +90,11 @@ def attitude_kernel(t: np.ndarray, ax: np.ndarray, ay: np.ndarray, p: np.ndarray
 
     Roll, with a roll-rate channel, is a complementary filter of the gyro and gravity that
     needs no suspension parameters:
-        φ̂̇ = p + r tan θ̂ − b̂_p + w (φ_g − φ̂)/τ_φ,   b̂̇_p = −w (φ_g − φ̂)/(τ_φ τ_b),
+        φ̂̇ = φ̇(p, q, r) − b̂_p + w (φ_g − φ̂)/τ_φ,   b̂̇_p = −w (φ_g − φ̂)/(τ_φ τ_b),
     φ_g = asin((a_y − r v_w)/g), w = 1/(1 + (e/e_φ)²), e = φ_g − φ̂ (a proportional-
     integral complementary filter whose slow integral state b̂_p, time constant τ_b, takes
-    the roll-gyro bias). p + r tan θ is the Euler roll rate (the gyro measures body rates);
+    the roll-gyro bias). φ̇(p, q, r) and θ̇(q, r) are the Euler rates of the body rates the
+    gyro measures (:func:`~vestim.models.kinematics.euler_rates`);
     φ_g is the tilt the IMU's lateral specific force shows beyond the centripetal
     acceleration r·v_x (v_w: the mean R ω of the undriven axle, or of the two middle
     wheels with four driven). φ_g also holds the sideslip acceleration v̇_y, the
@@ -106,10 +107,12 @@ def attitude_kernel(t: np.ndarray, ax: np.ndarray, ay: np.ndarray, p: np.ndarray
     c_roll a_y of that suspension replaces φ_g, with the constant gain L_φ: a stated model
     is a fact about the car, and it does not read a slide's v̇_y as roll.
 
-    Pitch is the quasi-static model θ_ss = c_pitch a_x corrected by the pitch rate with
-    gain L_θ. Without a roll rate the quasi-static roll φ_ss = c_roll a_y is used sample by
-    sample (NaN rates mean "no rate sensor"); c_roll, c_pitch = m(h − h_c)/k of the
-    [suspension] table (rad per m/s²).
+    Pitch is the quasi-static model θ_ss = c_pitch a_x corrected by the Euler pitch rate
+    θ̇ = q cos φ − r sin φ with gain L_θ (the plain q would read a rolled body's r sin φ as
+    pitch: 0.8° on the crossplant ramp steer x06, and through r tan θ a 0.6° roll error).
+    Without a roll rate the quasi-static roll φ_ss = c_roll a_y is used sample by sample
+    (NaN rates mean "no rate sensor"); c_roll, c_pitch = m(h − h_c)/k of the [suspension]
+    table (rad per m/s²).
 
     ``roll_acc``, ``pitch_acc`` (rad/s²): the angular accelerations ṗ, q̇ of the body from
     the rate gyros through a critically damped second-order low-pass differentiator of
@@ -153,10 +156,11 @@ def attitude_kernel(t: np.ndarray, ax: np.ndarray, ay: np.ndarray, p: np.ndarray
                 if not np.isnan(z):
                     state[j + 1] += dt * (wn * wn * (z - state[j]) - 2.0 * wn * state[j + 1])
                     state[j] += dt * state[j + 1]
+            q_k = 0.0 if np.isnan(q[k]) else q[k]
             if np.isnan(p[k]):
                 state[0] = c_roll * ay[k]
             else:
-                rate = p[k] + r[k] * np.tan(state[1])
+                rate = euler_rates(p[k], q_k, r[k], state[0], state[1])[0]
                 if model_gain > 0.0:
                     state[0] += dt * (rate + model_gain * (phi_g - state[0]))
                 else:
@@ -171,7 +175,8 @@ def attitude_kernel(t: np.ndarray, ax: np.ndarray, ay: np.ndarray, p: np.ndarray
             if np.isnan(q[k]):
                 state[1] = th_ss
             else:
-                state[1] += dt * (q[k] + pitch_gain * (th_ss - state[1]))
+                rate = euler_rates(0.0, q_k, r[k], state[0], state[1])[1]
+                state[1] += dt * (rate + pitch_gain * (th_ss - state[1]))
         state[2] = t[k]
         roll[k] = state[0]
         pitch[k] = state[1]
