@@ -80,6 +80,10 @@ class ImuHealthParams:
             0.15 / 0.02) with no false flag on the 12 crossplant logs, the RAV4 log and the
             simulator; measured margin: a flag appears at 0.85× (RAV4, x09), 0.90× (x10).
             Below the 0.3 m/s² step, which the filters show at 85 % after 0.3 s.
+        turn_acc: 1 m/s², a_y is tested only while |v r| (low-passed) is below this: in a
+            turn a slide's v̇_y reads as a bias (the simulator's ait_slippery: a 1.8 m/s
+            sideslip building on ice was flagged as an a_y step and "corrected" away, v_y
+            NRMS 1.1 → 62 %).
         yaw_tol: 0.1 rad/s, front and rear axle yaw rates from the wheels (low-passed) must
             agree within this for the reference to be trusted (one-sided slip).
         off_frac: 0.5, the fault ends when the step is back below half the threshold.
@@ -108,6 +112,7 @@ class ImuHealthParams:
     e_max_gyro: float = 0.2
     thr_acc: float = 0.22
     thr_gyro: float = 0.03
+    turn_acc: float = 1.0
     quiet_acc: float = 0.3
     quiet_gyro: float = 0.03
     tau_f: float = 0.3
@@ -156,6 +161,7 @@ class ImuHealthKernelParams(NamedTuple):
     e_max_gyro: float
     thr_acc: float
     thr_gyro: float
+    turn_acc: float
     quiet_acc: float
     quiet_gyro: float
     tau_f: float
@@ -386,6 +392,8 @@ def imu_health_step(p: ImuHealthKernelParams, s: ImuHealthState, t: float, ax: f
                 thr = p.thr_acc if acc else p.thr_gyro
                 d = s.e2[j] - s.base[j]
                 ok = trusted and not frozen and abs(d) < (p.e_max_acc if acc else p.e_max_gyro)
+                # a_y only while nearly straight: in a turn a slide's v̇_y is not a bias
+                ok = ok and (j != 1 or abs(s.rs2[1]) < p.turn_acc)
                 moving = max(abs(s.rs2[j] - s.rslow[j]), abs(s.e2[j] + s.rs2[j] - s.mslow[j]),
                              abs(s.mf[j] - s.mslow[j]))
                 if not ok or moving > (p.quiet_acc if acc else p.quiet_gyro):
