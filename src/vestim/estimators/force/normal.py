@@ -156,13 +156,15 @@ def attitude_kernel(t: np.ndarray, ax: np.ndarray, ay: np.ndarray, p: np.ndarray
                 if not np.isnan(z):
                     state[j + 1] += dt * (wn * wn * (z - state[j]) - 2.0 * wn * state[j + 1])
                     state[j] += dt * state[j + 1]
-            q_k = 0.0 if np.isnan(q[k]) else q[k]
+            # Euler rates at the previous sample's attitude (explicit Euler for both angles)
+            roll_rate, pitch_rate = euler_rates(0.0 if np.isnan(p[k]) else p[k],
+                                                0.0 if np.isnan(q[k]) else q[k], r[k],
+                                                state[0], state[1])
             if np.isnan(p[k]):
                 state[0] = c_roll * ay[k]
             else:
-                rate = euler_rates(p[k], q_k, r[k], state[0], state[1])[0]
                 if model_gain > 0.0:
-                    state[0] += dt * (rate + model_gain * (phi_g - state[0]))
+                    state[0] += dt * (roll_rate + model_gain * (phi_g - state[0]))
                 else:
                     # Second-order complementary filter: the integral state b̂_p takes the
                     # roll gyro's bias, which a first-order filter would leave as a roll
@@ -170,13 +172,12 @@ def attitude_kernel(t: np.ndarray, ax: np.ndarray, ay: np.ndarray, p: np.ndarray
                     err = phi_g - state[0]
                     e = err / e_slide
                     w = 1.0 / (1.0 + e * e)
-                    state[0] += dt * (rate - state[8] + w * err / tau)
+                    state[0] += dt * (roll_rate - state[8] + w * err / tau)
                     state[8] -= dt * w * err / (tau * tau_b)
             if np.isnan(q[k]):
                 state[1] = th_ss
             else:
-                rate = euler_rates(0.0, q_k, r[k], state[0], state[1])[1]
-                state[1] += dt * (rate + pitch_gain * (th_ss - state[1]))
+                state[1] += dt * (pitch_rate + pitch_gain * (th_ss - state[1]))
         state[2] = t[k]
         roll[k] = state[0]
         pitch[k] = state[1]
