@@ -164,12 +164,17 @@ def tire_samples(log: pd.DataFrame, vehicle: Vehicle, *, min_speed: float = 1.5,
     """Per-direction tire samples from the measured signals, and the pipeline estimate used.
 
     The pipeline runs with ``velocity="reference"`` (its F_x, F_z are the same as the
-    default's: the force stage does not depend on the velocity stage).
+    default's: the force stage does not depend on the velocity stage), with the reference
+    filter's slip model free of any stiffness (``slip_bias`` = 0, ``k_mu`` = 1): the default
+    removes an expected slip μ_x/C from each wheel with a prior C, and a v̂ built on that
+    prior would return it as the fitted stiffness.
     """
+    from vestim.estimators.velocity.reference import ReferenceParams
     from vestim.pipeline import Pipeline, PipelineConfig  # design → pipeline, used only here
 
     meas = _measured(log)
-    est = Pipeline(vehicle, PipelineConfig(velocity="reference")).run(meas)
+    free = ReferenceParams(k_mu=1.0, slip_bias=0.0)
+    est = Pipeline(vehicle, PipelineConfig(velocity="reference", reference=free)).run(meas)
     radius = vehicle.body.wheel_radius
     omega = meas[[f"omega_{c}" for c in CORNERS]].to_numpy(dtype=float)
     rw = radius * _smooth(omega, smooth)

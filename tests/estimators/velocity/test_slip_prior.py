@@ -1,0 +1,67 @@
+"""The reference filter's wheel-slip model on independent data (issue 11).
+
+Each wheel's speed is corrected for its expected slip μ_x/C (C = 20, ReferenceParams.
+slip_bias) and trusted with a σ of 100 % of that slip (k_mu). The earlier σ = |μ_x| v (k_mu
+= 1, no correction) de-weighted every wheel while braking, and v_x became the a_x integral.
+"""
+
+from dataclasses import replace
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from vestim.estimators.velocity.reference import ReferenceParams
+from vestim.io import load_vehicle
+from vestim.pipeline import Pipeline, PipelineConfig
+
+SHARED = Path(__file__).resolve().parents[3].parent / "shared"
+XP = SHARED / "crossplant" / "data"
+RAV4 = SHARED / "real" / "comma2k19_rav4"
+
+
+def _measured(log: pd.DataFrame) -> pd.DataFrame:
+    return log[[c for c in log.columns if not c.startswith(("ref_", "_"))]]
+
+
+def _run(log: pd.DataFrame, vehicle: str, **reference: float) -> np.ndarray:
+    cfg = PipelineConfig(reference=replace(ReferenceParams(), **reference))
+    return Pipeline(load_vehicle(vehicle), cfg).run(_measured(log))["vx"].to_numpy()
+
+
+@pytest.mark.skipif(not RAV4.exists(), reason=f"RAV4 log not found at {RAV4}")
+def test_rav4_vx_within_target_without_gnss() -> None:
+    """Real RAV4 log without torques or gnss_speed: v_x RMSE ≤ 0.155 m/s (the issue's target,
+    the mean wheel speed's 0.156 less its rounding; measured 0.144). Its remaining error is the
+    file's loaded radius (the mean wheel speed reads 0.15 m/s low at cruise), which only
+    gnss_speed can find. The slip-free model (k_mu 1, no correction) had 0.255."""
+    log = pd.read_parquet(RAV4 / "seg40.parquet").drop(columns=["gnss_speed"])
+    ref = log["ref_vx"].to_numpy()
+    rmse = float(np.sqrt(np.mean((_run(log, str(RAV4 / "vehicle.toml")) - ref) ** 2)))
+    old = _run(log, str(RAV4 / "vehicle.toml"), k_mu=1.0, slip_bias=0.0)
+    assert rmse <= 0.155
+    assert float(np.sqrt(np.mean((old - ref) ** 2))) > 0.2  # the failure this replaces
+
+
+@pytest.mark.skipif(not XP.exists(), reason=f"crossplant data not found at {XP}")
+@pytest.mark.parametrize(("name", "vehicle", "without"), [
+    ("x04_brake_splitmu_rwd", "vehicle3.toml", 0.23),
+    ("x07_brake_turn_dry_awd", "vehicle3_awd.toml", 0.38)])
+def test_expected_slip_correction_on_crossplant_braking(name: str, vehicle: str,
+                                                        without: float) -> None:
+    """Braking on every wheel (x07 AWD on dry at 4 m/s² in a turn, x04 3 m/s² on split
+    μ 0.2 / 0.9): all wheels read slow by their slip, so with the same σ and no correction
+    the CG v_x follows them (NRMS ``without`` %, measured); removing μ_x/C with the prior
+    C = 20 brings it under 0.1 % (measured 0.05 and 0.02 %). The plant's PAC2002 tire is
+    not the prior's."""
+    log = pd.read_parquet(XP / f"{name}.parquet")
+    keep = log["t"].to_numpy() >= 0.5
+    ref = log["ref_vx"].to_numpy()
+
+    def nrms(vx: np.ndarray) -> float:
+        e = (vx - ref)[keep]
+        return float(100 * np.sqrt(np.mean(e * e)) / np.abs(ref[keep]).max())
+
+    assert nrms(_run(log, str(XP / vehicle))) < 0.1
+    assert nrms(_run(log, str(XP / vehicle), slip_bias=0.0)) == pytest.approx(without, abs=0.03)
