@@ -168,7 +168,7 @@ class Pipeline:
         self._friction_state = new_friction_state()
         self.force = ForceEstimator(vehicle, self.config.force_config())
         self.reference = ReferenceFilter(b.wheel_radius, b.lf, b.lr, self._xw, self._yw,
-                                         self.config.reference)
+                                         self.config.reference, mass=b.mass)
         self.kinematic = KinematicIntegrator(b.wheel_radius)
         method = self.config.velocity
         corner_method = registry.lookup("velocity", method).corner
@@ -179,7 +179,7 @@ class Pipeline:
                        if corner_method is not None else None)
         # The fused filter: a second reference filter that also takes the corner estimates.
         self.fused = ReferenceFilter(b.wheel_radius, b.lf, b.lr, self._xw, self._yw,
-                                     self.config.reference)
+                                     self.config.reference, mass=b.mass)
         self._prev = np.array([np.nan, 0.0])  # (t, yaw rate) of the previous sample, for ṙ
         self._fused_is_reference = True  # the fused filter has not diverged from the plain one
         self._step_args: tuple[Any, ...] | None = None  # compiled step's arguments (cache)

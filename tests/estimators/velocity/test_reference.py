@@ -154,9 +154,10 @@ def test_covariance_stays_symmetric_positive_definite(seed: int, speed: float, s
 
 
 def test_kernel_params_take_every_tuning_field_from_the_config() -> None:
-    # Every ReferenceParams field reaches the kernel by name but four: window (the rows of
+    # Every ReferenceParams field reaches the kernel by name but five: window (the rows of
     # the ω history, the state's shape), q_vx_speed (the speed mode's q_vx), sigma_gnss
-    # and sigma_vehicle_speed (the pipeline's extra measurements). Each field gets its own
+    # and sigma_vehicle_speed (the pipeline's extra measurements), torque_dead_mu (a share
+    # of the wheel load that raises torque_dead where the mass is given). Each field gets its own
     # value (index + 0.5) so that a field packed from another one would show.
     values: dict[str, Any] = {f.name: i + 0.5 for i, f in enumerate(fields(ReferenceParams))
                               if f.name != "window"}
@@ -164,7 +165,7 @@ def test_kernel_params_take_every_tuning_field_from_the_config() -> None:
     kp = reference_params(cfg, R, 1.4, 1.6, XW, YW)
     tuning = {f.name for f in fields(ReferenceParams)}
     assert tuning - set(ReferenceKernelParams._fields) == {
-        "window", "q_vx_speed", "sigma_gnss", "sigma_vehicle_speed"}
+        "window", "q_vx_speed", "sigma_gnss", "sigma_vehicle_speed", "torque_dead_mu"}
     for name in tuning & set(kp._fields):
         assert getattr(kp, name) == getattr(cfg, name), name
         assert type(getattr(kp, name)) is float, name  # one Numba type for every config
@@ -176,6 +177,10 @@ def test_kernel_params_take_every_tuning_field_from_the_config() -> None:
     assert speed.slip_sign == np.inf
     back = speed._replace(kin_fx=False, q_vx=cfg.q_vx, slip_sign=cfg.slip_sign)
     assert back[:-2] == kp[:-2]  # all but the arrays xw, yw
+    # With the mass, the dead zone is the larger of the floor and the load share R·m g/4.
+    heavy = reference_params(cfg, R, 1.4, 1.6, XW, YW, mass=2000.0)
+    assert heavy.torque_dead == pytest.approx(cfg.torque_dead_mu * R * 2000.0 * 9.81 / 4.0)
+    assert heavy.torque_dead > cfg.torque_dead
 
 
 def test_a_changed_gate_reaches_the_kernel() -> None:

@@ -109,6 +109,15 @@ class ReferenceParams:
         torque_dead: |torque| (N m) below which a wheel counts as neither driven nor braked
             for the slip-signed inflation (torque-sensor noise at standstill, σ ≈ 6 N m,
             would otherwise make the inflation one-sided at random and bias b_x).
+        torque_dead_mu: the same dead zone as a share of the wheel's static load, R·m g/4
+            (the filter takes the larger): a torque that asks under 5 % of the load spins
+            no wheel on any road a car drives on (glare ice: μ ≈ 0.05–0.1), while the
+            steady torque of cruising against the drag (μ ≈ 0.02) inflated a driven wheel's
+            noise above v̂_x and not below it, σ that then entered as persistent slip
+            (τ_wheel/T_s): v̂_x ran 0.3 m/s low on the simulator's AWD runs (wet lane change
+            CG v_x 1.25 → 0.08 %, step steer v_y 17.1 → 2.1 %). For the simulator's SUV it
+            is 92 N m, for the crossplant's Ford Escort 52 N m; the crossplant RWD ice launch
+            (x02) pays 0.21 → 0.26 % CG v_x (its first 0.1 s of spin-up is trusted longer).
         k_comb: slip ratio λ_c of an axle's wheels at which the v_y bound's one-sidedness
             doubles (side_vy / (1 + (λ/λ_c)²)): a tire in longitudinal slip is in combined
             slip and makes less lateral force than the linear tire says.
@@ -161,6 +170,7 @@ class ReferenceParams:
     q_gyro_bias: float = 1.0e-9
     gyro_bias_sd: float = 0.003
     torque_dead: float = 20.0
+    torque_dead_mu: float = 0.05
     k_comb: float = 0.1
     alpha_lin: float = 0.015
     k_rel_sat: float = 1.0
@@ -681,14 +691,18 @@ class ReferenceState(NamedTuple):
 
 
 def reference_params(p: ReferenceParams, radius: float, lf: float, lr: float, xw: np.ndarray,
-                     yw: np.ndarray, fx_from_speed: bool = False) -> ReferenceKernelParams:
+                     yw: np.ndarray, fx_from_speed: bool = False,
+                     mass: float = 0.0) -> ReferenceKernelParams:
     """Parameters of :func:`reference_step` for the tuning ``p`` and the geometry (m).
 
     ``fx_from_speed`` (a log without ``ax``, see :meth:`ReferenceFilter.advance`): ``kin_fx``
-    set, ``q_vx`` = ``q_vx_speed`` and ``slip_sign`` = ∞ (no slip-signed inflation)."""
+    set, ``q_vx`` = ``q_vx_speed`` and ``slip_sign`` = ∞ (no slip-signed inflation).
+    ``mass`` (kg; 0: unknown) sets the load share of the torque dead zone
+    (``torque_dead_mu``)."""
     speed = {"kin_fx": True, "q_vx": p.q_vx_speed, "slip_sign": np.inf} if fx_from_speed else {
         "kin_fx": False}
-    return pack(ReferenceKernelParams, p, radius=radius, lf=lf, lr=lr,
+    torque_dead = max(p.torque_dead, p.torque_dead_mu * radius * mass * 9.81 / 4.0)
+    return pack(ReferenceKernelParams, p, radius=radius, lf=lf, lr=lr, torque_dead=torque_dead,
                 xw=np.ascontiguousarray(xw, dtype=float),
                 yw=np.ascontiguousarray(yw, dtype=float), **speed)
 
@@ -980,10 +994,12 @@ class ReferenceFilter:
         lf, lr: CG to front / rear axle, m.
         xw, yw: corner positions from the CG (fl, fr, rl, rr), m.
         params: tuning.
+        mass: vehicle mass, kg, for the load share of the torque dead zone (0: unknown, the
+            N m floor alone).
     """
 
     def __init__(self, radius: float, lf: float, lr: float, xw: np.ndarray, yw: np.ndarray,
-                 params: ReferenceParams | None = None) -> None:
+                 params: ReferenceParams | None = None, mass: float = 0.0) -> None:
         self.radius = radius
         self.lf = lf
         self.lr = lr
@@ -991,9 +1007,10 @@ class ReferenceFilter:
         self.yw = np.ascontiguousarray(yw, dtype=float)
         self.params = params or ReferenceParams()
         geometry = (radius, lf, lr, self.xw, self.yw)
-        self.kernel_params = reference_params(self.params, *geometry)
+        self.kernel_params = reference_params(self.params, *geometry, mass=mass)
         """The kernel's parameters (f_x the IMU's specific force)."""
-        self.kernel_params_speed = reference_params(self.params, *geometry, fx_from_speed=True)
+        self.kernel_params_speed = reference_params(self.params, *geometry, fx_from_speed=True,
+                                                    mass=mass)
         """The kernel's parameters where f_x is a speed's derivative (``fx_from_speed``)."""
         self.reset()
 
