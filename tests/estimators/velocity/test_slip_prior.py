@@ -33,7 +33,7 @@ def _run(log: pd.DataFrame, vehicle: str, **reference: float) -> np.ndarray:
 @pytest.mark.skipif(not RAV4.exists(), reason=f"RAV4 log not found at {RAV4}")
 def test_rav4_vx_within_target_without_gnss() -> None:
     """Real RAV4 log without torques or gnss_speed: v_x RMSE ≤ 0.155 m/s (the issue's target,
-    the mean wheel speed's 0.156 less its rounding; measured 0.144). Its remaining error is the
+    the mean wheel speed's 0.156 less its rounding; measured 0.142). Its remaining error is the
     file's loaded radius (the mean wheel speed reads 0.15 m/s low at cruise), which only
     gnss_speed can find. The slip-free model (k_mu 1, no correction) had 0.255."""
     log = pd.read_parquet(RAV4 / "seg40.parquet").drop(columns=["gnss_speed"])

@@ -69,8 +69,8 @@ class ReferenceParams:
             tire: the vehicle file's nominal LuGre values (σ0x/κx = 75) are not used for it,
             as no independent log is that stiff (the crossplant PAC2002 tire has
             p_kx1 = 22.3). Braking logs: crossplant x04 CG v_x 0.23 → 0.05 %, x07 0.38 →
-            0.02 % (k_mu 0.05 both); RAV4 (no torques, no gnss_speed) 0.154 → 0.144 m/s.
-            The simulator's LuGre tire is C = 75: its AWD accel_brake gets 0.31 → 0.60 %.
+            0.02 % (k_mu 0.05 both); RAV4 (no gnss_speed) 0.154 → 0.144 m/s. The
+            simulator's LuGre tire is C = 75: its AWD accel_brake gets 0.31 → 0.58 %.
         k_mu: slip-evidence gain: σ grows by k_mu·|μ_x|·|v| (m/s per unit μ_x); 0.05: the
             σ of the expected slip is 100 % of it (C from 10 to ∞). Beyond the linear range
             (a tire near its unknown friction limit) the slip grows faster; the ω̇ evidence
