@@ -50,6 +50,7 @@ import pandas as pd
 from scipy.optimize import least_squares
 
 from vestim.constants import CORNERS
+from vestim.estimators.velocity.reference import ReferenceParams
 from vestim.io.vehicle import LuGreTire, Vehicle
 from vestim.models.tire import lugre_peak_mu, lugre_steady_state
 
@@ -169,7 +170,6 @@ def tire_samples(log: pd.DataFrame, vehicle: Vehicle, *, min_speed: float = 1.5,
     removes an expected slip μ_x/C from each wheel with a prior C, and a v̂ built on that
     prior would return it as the fitted stiffness.
     """
-    from vestim.estimators.velocity.reference import ReferenceParams
     from vestim.pipeline import Pipeline, PipelineConfig  # design → pipeline, used only here
 
     meas = _measured(log)

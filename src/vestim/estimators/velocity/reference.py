@@ -39,6 +39,7 @@ from typing import Any, NamedTuple
 import numpy as np
 from numba import njit
 
+from vestim.constants import G
 from vestim.models.kinematics import middle_wheel_speed
 from vestim.params import check_ranges, pack
 
@@ -68,8 +69,8 @@ class ReferenceParams:
             the passenger-car value (PAC2002 p_kx1 ≈ 15–25). It is a prior, not this car's
             tire: the vehicle file's nominal LuGre values (σ0x/κx = 75) are not used for it,
             as no independent log is that stiff (the crossplant PAC2002 tire has
-            p_kx1 = 22.3). Braking logs: crossplant x04 CG v_x 0.23 → 0.05 %, x07 0.38 →
-            0.02 % (k_mu 0.05 both); RAV4 (no gnss_speed) 0.154 → 0.144 m/s. The
+            p_kx1 = 22.3). Braking logs: crossplant x04 CG v_x 0.23 → 0.06 %, x07 0.38 →
+            0.02 % (k_mu 0.05 both); RAV4 (no gnss_speed) 0.153 → 0.142 m/s. The
             simulator's LuGre tire is C = 75: its AWD accel_brake gets 0.31 → 0.58 %.
         k_mu: slip-evidence gain: σ grows by k_mu·|μ_x|·|v| (m/s per unit μ_x); 0.05: the
             σ of the expected slip is 100 % of it (C from 10 to ∞). Beyond the linear range
@@ -701,7 +702,7 @@ def reference_params(p: ReferenceParams, radius: float, lf: float, lr: float, xw
     (``torque_dead_mu``)."""
     speed = {"kin_fx": True, "q_vx": p.q_vx_speed, "slip_sign": np.inf} if fx_from_speed else {
         "kin_fx": False}
-    torque_dead = max(p.torque_dead, p.torque_dead_mu * radius * mass * 9.81 / 4.0)
+    torque_dead = max(p.torque_dead, p.torque_dead_mu * radius * mass * G / 4.0)
     return pack(ReferenceKernelParams, p, radius=radius, lf=lf, lr=lr, torque_dead=torque_dead,
                 xw=np.ascontiguousarray(xw, dtype=float),
                 yw=np.ascontiguousarray(yw, dtype=float), **speed)
