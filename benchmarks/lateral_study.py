@@ -3,6 +3,7 @@ the crossplant campaign, scored with ``../shared``'s own definitions (``targets.
 ``campaign_score.judge``).
 
 usage: python benchmarks/lateral_study.py [--tag NAME] [--only revs x06 s1_0 ...] [--jobs 2]
+                                         [--set reference.k_rel=0.3 ...]
 
 Prints one line per log (v_x, v_y, β, slip angle, with * for a miss and ! for worse than the
 naive floor) and a summary per data set. The estimates go to /tmp/vestim-study/<tag>/ so that
@@ -61,8 +62,24 @@ def _real_score(truth: pd.DataFrame, est: pd.DataFrame) -> dict[str, dict[str, f
             "alpha": {"value": None, "floor": None}}
 
 
-def _one(args: tuple[str, str, str, Path, Path, tuple[str, ...]]) -> tuple[str, str, dict]:
-    tag, kind, sid, log, vfile, drop = args
+def _config(sets: list[str]) -> object:
+    """A PipelineConfig with ``table.field=value`` overrides (a study's variants)."""
+    from dataclasses import replace
+
+    from vestim.pipeline import PipelineConfig
+
+    cfg = PipelineConfig()
+    for item in sets:
+        key, value = item.split("=")
+        table, name = key.split(".")
+        sub = getattr(cfg, table)
+        cfg = replace(cfg, **{table: replace(sub, **{name: type(getattr(sub, name))(value)})})
+    return cfg
+
+
+def _one(args: tuple[str, list[str], str, str, Path, Path, tuple[str, ...]]
+         ) -> tuple[str, str, dict]:
+    tag, sets, kind, sid, log, vfile, drop = args
     warnings.filterwarnings("ignore")
     import campaign_score as cs
 
@@ -74,7 +91,7 @@ def _one(args: tuple[str, str, str, Path, Path, tuple[str, ...]]) -> tuple[str, 
     out = Path("/tmp/vestim-study") / tag / f"{sid}.parquet"
     out.parent.mkdir(parents=True, exist_ok=True)
     try:
-        est = Pipeline(load_vehicle(vfile)).run(truth[cols].copy())
+        est = Pipeline(load_vehicle(vfile), _config(sets)).run(truth[cols].copy())
     except Exception as exc:
         return kind, sid, {"error": f"{type(exc).__name__}: {exc}"}
     est.to_parquet(out)
@@ -99,8 +116,9 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--tag", default="now")
     ap.add_argument("--only", nargs="*")
     ap.add_argument("--jobs", type=int, default=2)
+    ap.add_argument("--set", nargs="*", default=[])
     a = ap.parse_args(argv)
-    cases = [(a.tag, *c) for c in _cases()
+    cases = [(a.tag, a.set, *c) for c in _cases()
              if not a.only or c[1].startswith(tuple(a.only)) or c[0] in a.only]
     with ProcessPoolExecutor(a.jobs) as pool:
         results = list(pool.map(_one, cases))

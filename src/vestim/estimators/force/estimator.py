@@ -49,6 +49,7 @@ Missing channels (``shared/spec/log-format.md``; the gap of 001 Sec. VI):
 
 from __future__ import annotations
 
+import math
 from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass, field
 
@@ -108,6 +109,17 @@ class ForceConfig:
         pitch_gain: correction gain L_θ of the pitch filter, 1/s.
         rate_filter_hz: corner frequency of the roll and pitch acceleration differentiators
             whose I ω̇ terms enter the load transfer, Hz (:func:`.normal.attitude_kernel`).
+        roll_gradient_prior, roll_gradient_sd: prior mean and one-sigma of the roll gradient
+            dφ/da_y that a log without a roll rate and a vehicle file without a
+            ``[suspension]`` table (or a calibrated ``roll_gradient``) identifies online,
+            rad per m/s² (:func:`.normal.attitude_kernel`). 5 ± 5°/g: 0°/g is an INS's
+            gravity-free acceleration or a race car, 10°/g a soft passenger car. The
+            gravity of roll is 0–17 % of a_y over that range, so no fixed value is right for
+            every car (the file's default suspension said 6–9°/g, and an INS log then read
+            11–14 % low).
+        roll_id_tau: forgetting time of that identification, s.
+        roll_id_noise: one-sigma of the sideslip acceleration v̇_y/g that the identification
+            treats as noise, rad, with a correlation time of 0.5 s.
     """
 
     longitudinal: str = "ukf"
@@ -122,6 +134,10 @@ class ForceConfig:
     roll_gain: float = 2.0
     roll_bias_tau: float = 20.0
     pitch_gain: float = 2.0
+    roll_gradient_prior: float = 0.0089
+    roll_gradient_sd: float = 0.0089
+    roll_id_tau: float = 120.0
+    roll_id_noise: float = 0.1
 
     def __post_init__(self) -> None:
         if self.longitudinal not in lon.METHODS:
@@ -130,7 +146,12 @@ class ForceConfig:
         if self.normal not in nrm.MODES:
             raise ValueError(f"normal-load mode {self.normal!r}: use one of {', '.join(nrm.MODES)}")
         check_ranges(self, "force_params", positive=("roll_tau", "rate_filter_hz", "roll_slide",
-                                                     "roll_gain", "roll_bias_tau", "pitch_gain"))
+                                                     "roll_gain", "roll_bias_tau", "pitch_gain",
+                                                     "roll_gradient_sd", "roll_id_tau",
+                                                     "roll_id_noise"))
+        if not math.isfinite(self.roll_gradient_prior):
+            raise ValueError(f"force_params roll_gradient_prior = {self.roll_gradient_prior} "
+                             "must be finite")
 
 
 @dataclass
@@ -460,9 +481,11 @@ class ForceEstimator:
                 self._c_roll = roll
             if pitch is not None:  # pitch_gradient = −dθ/da_x (the nose rises accelerating)
                 self._c_pitch = -pitch
+        roll_known = "suspension" in vehicle.given or (
+            cal is not None and cal.excited("body", "roll_gradient") is not None)
         self._att_prm = nrm.attitude_params(self.config, self._c_roll, self._c_pitch,
                                             b.wheel_radius, b.drivetrain,
-                                            "suspension" in vehicle.given)
+                                            "suspension" in vehicle.given, roll_known)
         self._xw = np.array([b.lf, b.lf, -b.lr, -b.lr])
         self._yw = 0.5 * np.array([b.track_f, -b.track_f, b.track_r, -b.track_r])
         self._w4, self._c4, self._tau4 = ukf_weights(4)
@@ -484,7 +507,7 @@ class ForceEstimator:
         # inertial force −I_w ω̇_i/R alone (every method is linear in the torque).
         self._lon_inertia = lon.LongitudinalEstimator(self.vehicle, cfg.longitudinal, cfg.ukf,
                                                       cfg.pid, cfg.uio)
-        self._att = np.zeros(9)
+        self._att = np.zeros(nrm.N_ATTITUDE)
         self._lat_x = np.zeros(lat.N_X)
         self._lat_P = np.zeros((lat.N_X, lat.N_X))
         self._lat_state = np.zeros(lat.N_STATE)

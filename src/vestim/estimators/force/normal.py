@@ -65,16 +65,79 @@ class AttitudeKernelParams(NamedTuple):
     roll_slide: float  # e_φ, rad
     roll_gain: float  # L_φ, 1/s (0: no stated [suspension])
     roll_bias_tau: float  # τ_b, s
+    roll_identify: bool  # identify the roll gradient online (no roll rate, no stated one)
+    roll_gradient_prior: float  # k₀, rad per m/s²
+    roll_gradient_sd: float  # σ_k, rad per m/s²
+    roll_id_tau: float  # forgetting time, s
+    roll_id_noise: float  # σ_e, rad
+
+
+N_ATTITUDE = 14
+"""Length of :func:`attitude_kernel`'s state array."""
+ROLL_ID_CORRELATION = 0.5
+"""Correlation time of the sideslip acceleration in the roll-gradient regression, s."""
+ROLL_GRADIENT_RANGE = (-0.01, 0.03)
+"""Bounds of the identified roll gradient, rad per m/s² (−5.6 to 17°/g: an accelerometer's
+scale error either way, and the softest suspension)."""
+ROLL_BIAS_SD = 0.03
+"""Prior one-sigma of the regression's offset, rad (0.3 m/s²: accelerometer and yaw-gyro
+bias × speed, a bank)."""
 
 
 def attitude_params(config: Any, c_roll: float, c_pitch: float, radius: float,
-                    drivetrain: str, suspension_given: bool) -> AttitudeKernelParams:
+                    drivetrain: str, suspension_given: bool,
+                    roll_known: bool = True) -> AttitudeKernelParams:
     """:class:`AttitudeKernelParams` from the force stage's config (its ``roll_tau``,
-    ``pitch_gain``, ``rate_filter_hz``, ``roll_slide``, ``roll_gain``, ``roll_bias_tau``)
-    and the vehicle's values; L_φ only with a stated ``[suspension]``."""
+    ``pitch_gain``, ``rate_filter_hz``, ``roll_slide``, ``roll_gain``, ``roll_bias_tau`` and
+    the roll-gradient identification's ``roll_gradient_prior``, ``roll_gradient_sd``,
+    ``roll_id_tau``, ``roll_id_noise``) and the vehicle's values; L_φ only with a stated
+    ``[suspension]``; the roll gradient is identified (without a roll rate) unless
+    ``roll_known`` (a stated suspension or a calibrated gradient)."""
     return pack(AttitudeKernelParams, config, c_roll=c_roll, c_pitch=c_pitch, radius=radius,
                 undriven_axle={"fwd": 1, "rwd": 0}.get(drivetrain, -1),
-                roll_gain=config.roll_gain if suspension_given else 0.0)
+                roll_gain=config.roll_gain if suspension_given else 0.0,
+                roll_identify=not roll_known)
+
+
+@njit(**_JIT)
+def _roll_gradient(prm: AttitudeKernelParams, state: np.ndarray, dt: float, ay: float,
+                   r: float, v: float) -> float:
+    """One sample of the online roll gradient k (rad per m/s²), state[9:14] the forgotten
+    sums [Σx², Σx, Σ1, Σx e, Σe] of the regression e = k x + b.
+
+    e = (a_y − r v)/g is the tilt the lateral specific force shows beyond the centripetal
+    acceleration x = r v: a body-fixed accelerometer in a car that rolls φ = k a_y reads
+    g sin φ ≈ g k a_y of gravity there, an INS's gravity-free output none (k ≈ 0), and an
+    accelerometer whose scale is off by s − 1 reads like k = (s − 1)/g. The regressor is
+    r v, not a_y: the accelerometer's noise (up to 4 m/s² of vibration) would be on both
+    sides of the regression and bias k by σ²/var(a_y) (to the 17°/g bound on the vibrating
+    campaign logs). The sideslip acceleration v̇_y/g is the regression's noise (σ_e,
+    correlated over 0.5 s: it averages out over turns both ways); b takes the
+    accelerometer bias, the yaw-gyro bias × speed and a bank. Gaussian priors k₀ ± σ_k and
+    0 ± 0.03 rad, forgetting time τ; k is clipped to :data:`ROLL_GRADIENT_RANGE`. No speed
+    (NaN v): the sums are only forgotten.
+    """
+    lam = np.exp(-dt / prm.roll_id_tau)
+    for j in range(9, 14):
+        state[j] *= lam
+    if not np.isnan(v) and not np.isnan(ay) and not np.isnan(r):
+        w = dt / (prm.roll_id_noise * prm.roll_id_noise * ROLL_ID_CORRELATION)
+        x = r * v
+        e = (ay - x) / G
+        state[9] += w * x * x
+        state[10] += w * x
+        state[11] += w
+        state[12] += w * x * e
+        state[13] += w * e
+    pk = 1.0 / (prm.roll_gradient_sd * prm.roll_gradient_sd)
+    pb = 1.0 / (ROLL_BIAS_SD * ROLL_BIAS_SD)
+    m11 = state[9] + pk
+    m12 = state[10]
+    m22 = state[11] + pb
+    b1 = state[12] + pk * prm.roll_gradient_prior
+    b2 = state[13]
+    k = (b1 * m22 - m12 * b2) / (m11 * m22 - m12 * m12)
+    return min(max(k, ROLL_GRADIENT_RANGE[0]), ROLL_GRADIENT_RANGE[1])
 
 
 @njit(**_JIT)
@@ -83,7 +146,7 @@ def attitude_kernel(t: np.ndarray, ax: np.ndarray, ay: np.ndarray, p: np.ndarray
                     state: np.ndarray, roll: np.ndarray, pitch: np.ndarray,
                     roll_acc: np.ndarray, pitch_acc: np.ndarray) -> None:
     """Attitude filter over a chunk, in place on ``state`` = [φ̂, θ̂, t_prev, started,
-    p̄, ṗ̄, q̄, q̇̄, b̂_p].
+    p̄, ṗ̄, q̄, q̇̄, b̂_p, and the roll-gradient regression's five sums] (:data:`N_ATTITUDE`).
 
     ``prm``: :class:`AttitudeKernelParams` (τ_φ, L_θ, c_roll, c_pitch, R, f_acc, the undriven
     axle, e_φ, L_φ, τ_b).
@@ -110,9 +173,12 @@ def attitude_kernel(t: np.ndarray, ax: np.ndarray, ay: np.ndarray, p: np.ndarray
     Pitch is the quasi-static model θ_ss = c_pitch a_x corrected by the Euler pitch rate
     θ̇ = q cos φ − r sin φ with gain L_θ (the plain q would read a rolled body's r sin φ as
     pitch: 0.8° on the crossplant ramp steer x06, and through r tan θ a 0.6° roll error).
-    Without a roll rate the quasi-static roll φ_ss = c_roll a_y is used sample by sample
-    (NaN rates mean "no rate sensor"); c_roll, c_pitch = m(h − h_c)/k of the [suspension]
-    table (rad per m/s²).
+    Without a roll rate the quasi-static roll φ_ss = c a_y is used sample by sample
+    (NaN rates mean "no rate sensor"), with c = c_roll where the vehicle file states its
+    ``[suspension]`` or a calibrated roll gradient, and else c identified online from the
+    log itself (:func:`_roll_gradient`: the tilt (a_y − r v)/g regressed on a_y, prior
+    k₀ ± σ_k), since a default suspension's gradient is invented and an INS log has none;
+    c_roll, c_pitch = m(h − h_c)/k of the [suspension] table (rad per m/s²).
 
     ``roll_acc``, ``pitch_acc`` (rad/s²): the angular accelerations ṗ, q̇ of the body from
     the rate gyros through a critically damped second-order low-pass differentiator of
@@ -141,7 +207,9 @@ def attitude_kernel(t: np.ndarray, ax: np.ndarray, ay: np.ndarray, p: np.ndarray
             phi_g = c_roll * ay[k]
         th_ss = c_pitch * ax[k]
         if state[3] == 0.0:
-            state[0] = phi_g if not np.isnan(p[k]) else c_roll * ay[k]
+            c_now = prm.roll_gradient_prior if prm.roll_identify else c_roll
+            state[0] = phi_g if not np.isnan(p[k]) else c_now * ay[k]
+            state[9:14] = 0.0
             state[1] = th_ss
             state[3] = 1.0
             state[4] = 0.0 if np.isnan(p[k]) else p[k]
@@ -161,7 +229,9 @@ def attitude_kernel(t: np.ndarray, ax: np.ndarray, ay: np.ndarray, p: np.ndarray
                                                 0.0 if np.isnan(q[k]) else q[k], r[k],
                                                 state[0], state[1])
             if np.isnan(p[k]):
-                state[0] = c_roll * ay[k]
+                c_now = (_roll_gradient(prm, state, dt, ay[k], r[k], v_w) if prm.roll_identify
+                         else c_roll)
+                state[0] = c_now * ay[k]
             else:
                 if model_gain > 0.0:
                     state[0] += dt * (roll_rate + model_gain * (phi_g - state[0]))

@@ -23,9 +23,13 @@ Measurements, sequential scalar updates per sample:
   cornering stiffness (α = −F_y/C_y): v_y = v_x(α_f + δ) − l_f r and v_y = v_x α_r + l_r r
   (single-track kinematics), pseudo-measurements whose σ grows with the slip angle
   (stiffness uncertainty) and the sideslip acceleration (sliding), gated at ``gate_vy``.
-  The friction is unknown, so a saturated axle's slip angle is unknown too: its
-  pseudo-measurement disagrees with the integral and is rejected; v_y then comes from
-  the integral, whose drift b_y (learnt while the tires were linear) holds down.
+  The friction is unknown, so an axle at the largest slip angle the car has shown so far
+  (the demonstrated friction), or whose v_y disagrees with the other axle's, gives only a
+  one-sided bound; v_y then comes from the integral, whose drift b_y (learnt while the
+  tires were linear) holds down. Both axles rejected for ``reacquire_s`` re-acquire them.
+
+v_y's process noise is the log's own: the measured white noise of f_y and its relative
+model error (scale, roll gravity), so a noisy or vibrating IMU leans on the tire model.
 
 A wheel whose measurement is rejected or inflated leaves the filter to the
 acceleration integral, whose drift the bias state limits.
@@ -87,8 +91,10 @@ class ReferenceParams:
         bias_max: bound on |b_x|, m/s² (sensor bias plus a grade of about 5 %).
         q_bias_y: random-walk intensity of b_y, (m/s²)²/s.
         bias_y_max: bound on |b_y|, m/s² (sensor biases, r-gyro bias × v_x, bank of ~5 %).
-        k_rel: relative error of the nominal cornering stiffness (σ of the pseudo-measurement
-            grows by k_rel·|v_x α|).
+        k_rel: relative error of the cornering stiffness (σ of the pseudo-measurement grows by
+            k_rel·|v_x α|). 0.5: the effective axle stiffness of the independent logs is
+            15–46/rad where the file says 15 and the online identification reaches 15–24
+            (benchmarks/lateral_study.py); 0.3 was tighter than that.
         gate_vy: innovation gate of the v_y pseudo-measurements, standard deviations.
         tau_vy: correlation time of their error, s (see :func:`_lateral_update`); 0.1 s:
             with the stiffness identified online the bound is no longer off by the nominal
@@ -122,10 +128,20 @@ class ReferenceParams:
         k_comb: slip ratio λ_c of an axle's wheels at which the v_y bound's one-sidedness
             doubles (side_vy / (1 + (λ/λ_c)²)): a tire in longitudinal slip is in combined
             slip and makes less lateral force than the linear tire says.
-        alpha_lin: linear-tire slip angle |α| (rad) at which the v_y pseudo-measurements are
-            half way from a value (k_rel, tau_vy, side_vy, gate_vy: the linear range, with the
-            stiffness identified online) to a bound (the ``*_sat`` values: a saturating tire
-            of unknown friction), blend 1/(1 + (α/α_lin)⁴).
+        alpha_lin: floor (rad) of the demonstrated slip angle α_d below (see ``demo_ratio``).
+        demo_ratio: the v_y pseudo-measurements are half way from a value (k_rel, tau_vy,
+            side_vy, gate_vy: the linear range, with the stiffness identified online) to a
+            bound (the ``*_sat`` values: a saturating tire of unknown friction) at the
+            linear-tire slip angle |α| = demo_ratio·α_d, blend 1/(1 + (α/(demo_ratio α_d))⁴),
+            where α_d is the largest |α| of either axle so far (forgotten over
+            ``demo_tau``, at least ``alpha_lin``): the friction the car has demonstrated. An
+            axle below it is evidence of the linear range on this road, an axle at it may be
+            at the limit. The fixed threshold it replaces (|α| = 0.015 rad) put 51–61 % of a
+            race car's samples into saturation, where its tires are linear to μ = 1.2, and
+            the one-sided bounds then let v_y drift (Revs: β 11.5°). 0 restores that fixed
+            threshold at ``alpha_lin``.
+        demo_tau: forgetting time of the demonstrated slip angle, s (a road whose friction
+            drops shows it only as a pair gap until then).
         k_rel_sat, tau_vy_sat, side_vy_sat, gate_vy_sat: k_rel, tau_vy, side_vy, gate_vy of a
             saturating axle.
         pair_gap: gap between the front and rear linear-tire v_y (m/s) at which both are
@@ -145,6 +161,23 @@ class ReferenceParams:
             all-wheel slip cost up to 0.4 point of CG v_x NRMS over the reference filter
             alone (seeds 1–3); at 3 m/s it is within 0.13 point everywhere.
         window: samples of the ω̇ difference.
+        fy_noise_tau: time constant of the online estimate of f_y's white noise, s: the
+            variance of its sample-to-sample difference over 2, averaged over this time. It
+            enters v_y's process noise as σ² T_s per second, so that the log's own sensor
+            noise (0.05 m/s² on a lab IMU, 1–4 m/s² of vibration in a car) sets how fast the
+            integral loses its information, not a constant.
+        fy_scale_sd: relative one-sigma of f_y as a model of v̇_y + r v_x: an accelerometer's
+            scale and the gravity of an unknown roll (0–10°/g: 0–17 % of a_y) that the
+            attitude stage removes only approximately. It enters v_y's process noise as
+            2 τ (σ_s f_y)² per second (a Gauss–Markov error of correlation time τ =
+            ``tau_fy``).
+        tau_fy: correlation time of that f_y error, s.
+        reacquire_s: time (s) after which a measurement kind that has been rejected at every
+            sample (the v_y pseudo-measurements of both axles, or every CG-speed measurement
+            of a log without wheel speeds) is taken as evidence that the filter, not the
+            measurement, has drifted: its state's variance is raised to the squared
+            innovation, and the next sample is accepted (the wheel speeds' restart, for the
+            other measurements).
     """
 
     q_vx: float = 0.02
@@ -161,7 +194,7 @@ class ReferenceParams:
     bias_max: float = 0.5
     q_bias_y: float = 1.0e-5
     bias_y_max: float = 0.5
-    k_rel: float = 0.3
+    k_rel: float = 0.5
     gate_vy: float = 6.0
     tau_vy: float = 0.1
     side_vy: float = 1.0
@@ -173,7 +206,7 @@ class ReferenceParams:
     torque_dead: float = 20.0
     torque_dead_mu: float = 0.05
     k_comb: float = 0.1
-    alpha_lin: float = 0.015
+    alpha_lin: float = 0.005
     k_rel_sat: float = 1.0
     tau_vy_sat: float = 1.0
     side_vy_sat: float = 0.05
@@ -184,11 +217,18 @@ class ReferenceParams:
     sigma_gnss: float = 0.1
     sigma_vehicle_speed: float = 0.1
     q_vx_speed: float = 0.2
+    fy_noise_tau: float = 2.0
+    fy_scale_sd: float = 0.02
+    tau_fy: float = 1.0
+    reacquire_s: float = 1.0
+    demo_ratio: float = 1.0
+    demo_tau: float = 60.0
 
     def __post_init__(self) -> None:
         check_ranges(self, "reference", positive=(
             "r_wheel", "gate", "r_vy", "gate_vy", "alpha_lin", "gate_vy_sat", "pair_gap",
-            "k_comb", "window", "sigma_corner_slip", "sigma_gnss", "sigma_vehicle_speed"),
+            "k_comb", "window", "sigma_corner_slip", "sigma_gnss", "sigma_vehicle_speed",
+            "fy_noise_tau", "tau_fy", "reacquire_s", "demo_tau"),
             nonnegative=[f.name for f in fields(self)])
 
 
@@ -610,7 +650,7 @@ class ReferenceKernelParams(NamedTuple):
     :class:`ReferenceParams` and the vehicle's geometry).
 
     Attributes:
-        q_vx … pair_gap, sigma_corner_slip: the :class:`ReferenceParams` fields of the same
+        q_vx … pair_gap, sigma_corner_slip … reacquire_s: the :class:`ReferenceParams` fields of the same
             name (``q_vx`` is ``q_vx_speed`` and ``slip_sign`` ∞ where ``kin_fx``).
         kin_fx: f_x is v̇_x itself, a speed's derivative (a log without ``ax``): the
             prediction leaves out r v_y; else the IMU's specific force.
@@ -651,6 +691,12 @@ class ReferenceKernelParams(NamedTuple):
     gate_vy_sat: float
     pair_gap: float
     sigma_corner_slip: float
+    fy_noise_tau: float
+    fy_scale_sd: float
+    tau_fy: float
+    reacquire_s: float
+    demo_ratio: float
+    demo_tau: float
     kin_fx: bool
     radius: float
     lf: float
@@ -675,6 +721,9 @@ class ReferenceState(NamedTuple):
         oldest: row of ``hist`` overwritten next (int).
         wheel_v, wheel_slip: (4,) work arrays of a sample (each wheel's CG speed, m/s, and
             its innovation over speed); no memory from one sample to the next.
+        fy_var: the online estimate of f_y's white-noise variance, (m/s²)².
+        t_vy_rejected, t_speed_rejected: time (s) for which every v_y pseudo-measurement,
+            and every CG-speed measurement of a log without wheel speeds, has been rejected.
     """
 
     x: np.ndarray
@@ -689,6 +738,10 @@ class ReferenceState(NamedTuple):
     oldest: np.ndarray
     wheel_v: np.ndarray
     wheel_slip: np.ndarray
+    fy_var: np.ndarray
+    t_vy_rejected: np.ndarray
+    t_speed_rejected: np.ndarray
+    alpha_demo: np.ndarray
 
 
 def reference_params(p: ReferenceParams, radius: float, lf: float, lr: float, xw: np.ndarray,
@@ -715,7 +768,8 @@ def new_reference_state(window: int) -> ReferenceState:
                           fx_prev=np.zeros(1), fy_prev=np.zeros(1), r_prev=np.zeros(1),
                           n_rejected=np.zeros(1, dtype=np.int64),
                           oldest=np.zeros(1, dtype=np.int64), wheel_v=np.zeros(4),
-                          wheel_slip=np.zeros(4))
+                          wheel_slip=np.zeros(4), fy_var=np.zeros(1), t_vy_rejected=np.zeros(1),
+                          t_speed_rejected=np.zeros(1), alpha_demo=np.zeros(1))
 
 
 @njit(**_JIT)
@@ -733,6 +787,10 @@ def copy_reference_state(dst: ReferenceState, src: ReferenceState) -> None:
     dst.oldest[:] = src.oldest
     dst.wheel_v[:] = src.wheel_v
     dst.wheel_slip[:] = src.wheel_slip
+    dst.fy_var[:] = src.fy_var
+    dst.t_vy_rejected[:] = src.t_vy_rejected
+    dst.t_speed_rejected[:] = src.t_speed_rejected
+    dst.alpha_demo[:] = src.alpha_demo
 
 
 @njit(**_JIT)
@@ -748,7 +806,7 @@ def _reference_rows(prm: ReferenceKernelParams, st: ReferenceState, start: int, 
     reference (two atomic reference-count operations), and a call per sample with them
     made the batch kernel 1.5 times slower (and a call with the arrays unpacked, 2.5)."""
     (x, P, hist, t_prev, started, fx_prev, fy_prev, r_prev, n_rejected, oldest_row, wheel_v,
-     wheel_slip) = st
+     wheel_slip, fy_var, t_vy_rej, t_speed_rej, alpha_demo) = st
     xw, yw = prm.xw, prm.yw
     m = hist.shape[0]
     nx = x.shape[0]
@@ -780,6 +838,10 @@ def _reference_rows(prm: ReferenceKernelParams, st: ReferenceState, start: int, 
             P[BX, BX] = 0.25
             P[BY, BY] = 0.05**2
             P[BR, BR] = prm.gyro_bias_sd * prm.gyro_bias_sd
+            fy_var[0] = 0.0
+            t_vy_rej[0] = 0.0
+            t_speed_rej[0] = 0.0
+            alpha_demo[0] = 0.0
             started[0] = True
             for j in range(m):
                 hist[j, 0] = t[k]
@@ -822,7 +884,14 @@ def _reference_rows(prm: ReferenceKernelParams, st: ReferenceState, start: int, 
             P[BR, VY] = p_r
             P[VY, BR] = p_r
             P[VX, VX] += prm.q_vx * dt
-            P[VY, VY] += prm.q_vy * dt
+            # v_y's process noise from the log's own f_y: its measured white noise (σ² T_s
+            # per second) and its relative model error (roll gravity, scale), correlated
+            # over τ_fy (2 τ (σ_s f_y)² per second).
+            d_fy = f_y[k] - fyp
+            if dt > 0:
+                fy_var[0] += min(dt / prm.fy_noise_tau, 1.0) * (0.5 * d_fy * d_fy - fy_var[0])
+            s_fy = prm.fy_scale_sd * fyp
+            P[VY, VY] += (prm.q_vy + fy_var[0] * dt + 2.0 * prm.tau_fy * s_fy * s_fy) * dt
             P[BX, BX] += prm.q_bias * dt
             P[BY, BY] += prm.q_bias_y * dt
             P[BR, BR] += prm.q_gyro_bias * dt
@@ -884,10 +953,26 @@ def _reference_rows(prm: ReferenceKernelParams, st: ReferenceState, start: int, 
             P[VX, VX] = r_w
             n_rejected[0] = 0
         # Extra CG-speed measurements (fusion with the corner-based estimators).
+        n_extra = 0
+        n_extra_ok = 0
+        innov_extra = 0.0
         for j in range(extra_v.shape[1]):
             if not np.isnan(extra_v[k, j]):
                 # A corner observer's error persists like a wheel's slip error: same inflation.
-                _block_update(x, P, LON, extra_v[k, j], extra_var[k, j] * inflate_w, prm.gate)
+                n_extra += 1
+                res = _block_update(x, P, LON, extra_v[k, j], extra_var[k, j] * inflate_w,
+                                    prm.gate)
+                if np.isnan(res):
+                    innov_extra = extra_v[k, j] - x[VX]
+                else:
+                    n_extra_ok += 1
+        # Without wheel speeds the CG-speed measurements are v_x's only anchor: rejected at
+        # every sample for reacquire_s, the integral has drifted, not they (re-acquisition).
+        if available == 0 and n_extra > 0:
+            t_speed_rej[0] = t_speed_rej[0] + dt if n_extra_ok == 0 else 0.0
+            if t_speed_rej[0] >= prm.reacquire_s:
+                P[VX, VX] += innov_extra * innov_extra
+                t_speed_rej[0] = 0.0
         # v_y from each axle's slip angle by the linear tire (front: v_y = v_x(α_f + δ) − l_f r,
         # rear: v_y = v_x α_r + l_r r). Its error grows with the slip angle (stiffness
         # uncertainty, k_rel) and with the sideslip acceleration |f_y − b_y − r v_x| (the
@@ -906,6 +991,14 @@ def _reference_rows(prm: ReferenceKernelParams, st: ReferenceState, start: int, 
             gap = ((x[VX] * (axle_slip[k, 0] + d_f - axle_slip[k, 1]) - (lf + lr) * r_now)
                    / prm.pair_gap)
             h_pair = 1.0 / (1.0 + gap * gap)
+        if prm.demo_ratio > 0.0:
+            alpha_demo[0] *= np.exp(-dt / prm.demo_tau) if dt > 0 else 1.0
+            for a in range(2):
+                if not np.isnan(axle_slip[k, a]):
+                    alpha_demo[0] = max(alpha_demo[0], abs(axle_slip[k, a]))
+        n_lat = 0
+        n_lat_ok = 0
+        innov_lat = 0.0
         for a in range(2):
             alpha = axle_slip[k, a]
             if np.isnan(alpha):
@@ -915,7 +1008,10 @@ def _reference_rows(prm: ReferenceKernelParams, st: ReferenceState, start: int, 
             # short correlation, pulled on both sides; towards saturation (friction unknown)
             # only a bound: σ k_rel_sat |v_x α|, a second of correlation, one-sided, 3σ gate.
             # h blends the two by the slip angle itself.
-            q = (alpha / prm.alpha_lin) ** 2
+            if prm.demo_ratio > 0.0:
+                q = (alpha / max(prm.demo_ratio * alpha_demo[0], prm.alpha_lin)) ** 2
+            else:
+                q = (alpha / prm.alpha_lin) ** 2
             h = h_pair / (1.0 + q * q)
             sig = ((prm.k_rel_sat + h * (prm.k_rel - prm.k_rel_sat)) * abs(x[VX] * alpha)
                    + prm.k_vy * beta_acc)
@@ -927,8 +1023,22 @@ def _reference_rows(prm: ReferenceKernelParams, st: ReferenceState, start: int, 
             # larger slip ratio λ (wheel-speed innovation over speed): side/(1 + (λ/λ_c)²).
             lam = max(wheel_slip[2 * a], wheel_slip[2 * a + 1]) / prm.k_comb
             side /= 1.0 + lam * lam
-            _lateral_update(x, P, z, alpha, prm.r_vy, sig, inflate, side,
-                            prm.gate_vy_sat + h * (prm.gate_vy - prm.gate_vy_sat))
+            res = _lateral_update(x, P, z, alpha, prm.r_vy, sig, inflate, side,
+                                  prm.gate_vy_sat + h * (prm.gate_vy - prm.gate_vy_sat))
+            n_lat += 1
+            if np.isnan(res):
+                innov_lat = z - x[VY]
+            else:
+                n_lat_ok += 1
+        # Re-acquisition: both axles rejected at every sample for reacquire_s means v_y has
+        # left them (an integral that drifted, a wrong roll or stiffness), not that both
+        # saturate for that long: v_y's variance is raised to the squared innovation, so the
+        # next pseudo-measurement passes its gate and pulls v_y back.
+        if n_lat > 0:
+            t_vy_rej[0] = t_vy_rej[0] + dt if n_lat_ok == 0 else 0.0
+            if t_vy_rej[0] >= prm.reacquire_s:
+                P[VY, VY] += innov_lat * innov_lat
+                t_vy_rej[0] = 0.0
         # The biases are physically bounded (sensor bias plus a grade or bank of at most
         # ~5 %): a larger value means slip or a sliding car is being explained away as bias.
         x[BX] = min(max(x[BX], -prm.bias_max), prm.bias_max)

@@ -1,0 +1,159 @@
+"""The reference filter's lateral part on independent data and by construction (issue 29).
+
+Root causes measured before this change, each with its test here:
+1. v_y was nearly an open-loop integral (q_vy 1e-4 (m/s)²/s, one-sided pseudo-measurements
+   beyond |α| = 0.015 rad, gates with no re-acquisition): the Revs 250 LM log (real, race
+   track, no wheel speeds) had β RMS error 11.5° against 1.69° for β = 0.
+2. Without a roll rate and a ``[suspension]`` table the roll was c_roll·a_y of an invented
+   default suspension (6.1°/g for the Revs file), which made an INS log's f_y read 11 % low.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from vestim.constants import G
+from vestim.estimators.velocity.reference import ReferenceFilter, ReferenceParams
+from vestim.io import load_vehicle
+from vestim.pipeline import Pipeline
+
+SHARED = Path(__file__).resolve().parents[3].parent / "shared"
+REVS = SHARED / "real" / "revs_250lm"
+CAMPAIGN = SHARED / "crossplant" / "data_campaign"
+DEG_PER_G = np.degrees(1.0) * G  # rad per m/s² → °/g
+
+R = 0.3
+XW = np.array([1.3, 1.3, -1.5, -1.5])
+YW = np.array([0.75, -0.75, 0.75, -0.75])
+FS = 200.0
+
+
+def _measured(log: pd.DataFrame) -> pd.DataFrame:
+    return log[[c for c in log.columns if not c.startswith(("ref_", "_"))]].copy()
+
+
+def _beta_rmse(truth: pd.DataFrame, est: pd.DataFrame) -> float:
+    """RMS β error (deg) over v_x > 3 m/s, t ≥ 0.5 s (``shared/real/targets.py``)."""
+    keep = (truth["t"] >= 0.5) & (truth["ref_vx"] > 3.0)
+    b_true = np.degrees(np.arctan2(truth["ref_vy"], truth["ref_vx"]))[keep]
+    b = np.degrees(np.arctan2(est["vy"], np.maximum(est["vx"], 0.1)))[keep]
+    return float(np.sqrt(np.mean((b - b_true) ** 2)))
+
+
+def _straight(n: int, speed: float = 20.0) -> dict[str, np.ndarray]:
+    """Straight driving at ``speed`` on free-rolling wheels; zero slip angles (v_y = 0)."""
+    return {"t": np.arange(n) / FS, "omega": np.full((n, 4), speed / R),
+            "torque": np.zeros((n, 4)), "mu_x": np.zeros((n, 4)), "axle_slip": np.zeros((n, 2)),
+            "f_x": np.zeros(n), "f_y": np.zeros(n), "yaw_rate": np.zeros(n),
+            "delta": np.zeros((n, 4))}
+
+
+@pytest.mark.parametrize(("reacquire_s", "recovers"), [(1.0, True), (1e9, False)])
+def test_locked_out_vy_reacquires_within_a_second(reacquire_s: float, recovers: bool) -> None:
+    """v_y forced 3 m/s off after 5 s of straight driving (P_vy converged, so both axles'
+    pseudo-measurements v_y = 0 fall outside their 6σ gates): with re-acquisition after
+    ``reacquire_s`` = 1 s of rejections, v_y is back within 0.05 m/s 1.5 s later (1 s of
+    rejections, then one accepted update); without it the integral stays 3 m/s off, which is
+    the lock-out that took the Revs log to 11.5° of β."""
+    n = int(10 * FS)
+    inp = _straight(n)
+    filt = ReferenceFilter(R, 1.3, 1.5, XW, YW, ReferenceParams(reacquire_s=reacquire_s))
+    half = int(5 * FS)
+    filt.advance(**{k: v[:half] for k, v in inp.items()})
+    filt.state.x[1] = 3.0
+    out = filt.advance(**{k: np.ascontiguousarray(v[half:]) for k, v in inp.items()})
+    vy = out["v"][:, 1]
+    after = vy[int(1.5 * FS):]
+    if recovers:
+        assert np.abs(after).max() < 0.05
+    else:
+        assert np.abs(after).min() > 2.9
+
+
+def test_lateral_process_noise_follows_the_logs_own_noise() -> None:
+    """f_y with white noise of 1 m/s² (Revs' a_y, sample to sample) against a clean one, 12 s
+    without pseudo-measurements (the integral alone): the online estimate of the noise
+    variance (0.5 E[Δf_y²], averaged over 2 s) is within 10 % of 1 (m/s²)², and over the last
+    2 s P_vy grows by σ² T_s t = 0.01 (m/s)² more than with the clean f_y, not by the
+    2e-4 (m/s)² of the old constant q_vy alone."""
+    n = int(12 * FS)
+    last = int(10 * FS)
+    growth = []
+    for sigma in (1.0, 0.0):
+        inp = _straight(n)
+        inp["f_y"] = np.random.default_rng(7).normal(0.0, sigma, n)
+        inp["axle_slip"] = np.full((n, 2), np.nan)
+        filt = ReferenceFilter(R, 1.3, 1.5, XW, YW)
+        first = filt.advance(**{k: v[:last] for k, v in inp.items()})
+        if sigma > 0:
+            assert filt.state.fy_var[0] == pytest.approx(sigma**2, rel=0.1)
+        out = filt.advance(**{k: np.ascontiguousarray(v[last:]) for k, v in inp.items()})
+        growth.append(out["sigma"][-1, 1] ** 2 - first["sigma"][-1, 1] ** 2)
+    assert growth[0] - growth[1] == pytest.approx(1.0 / FS * 2.0, rel=0.25)
+
+
+def _revs(scale: float = 1.0) -> tuple[pd.DataFrame, pd.DataFrame]:
+    """The Revs log and the default estimate with a_y × ``scale``."""
+    truth = pd.read_parquet(REVS / "20140222_01_01_03.parquet")
+    log = _measured(truth)
+    log["ay"] *= scale
+    return truth, Pipeline(load_vehicle(REVS / "vehicle.toml")).run(log)
+
+
+@pytest.mark.skipif(not REVS.exists(), reason=f"Revs log not found at {REVS}")
+def test_revs_sideslip_and_speed_no_longer_drift() -> None:
+    """Revs 250 LM (real race track, no wheel speeds or roll rate, 10 Hz gnss_speed): β RMS
+    error 1.93° (was 11.5°) and v_x RMSE 0.073 m/s (was 3.5; target 0.1). Bounds 2.1° and
+    0.1 m/s. β = 0 gives 1.69°, so the issue's β targets (≤ 0.5°, never above β = 0) are
+    still missed: see the xfail below."""
+    truth, est = _revs()
+    assert _beta_rmse(truth, est) <= 2.1
+    assert float(np.sqrt(np.mean((est["vx"] - truth["ref_vx"]) ** 2))) <= 0.1
+
+
+@pytest.mark.skipif(not REVS.exists(), reason=f"Revs log not found at {REVS}")
+@pytest.mark.xfail(strict=True, reason="Revs β 1.93° against 1.69° for β = 0: the file's one "
+                   "nominal stiffness (15/rad) against the car's effective 16.7 front and "
+                   "21.5 rear makes the axles disagree, which reads as saturation (pair gap) "
+                   "and leaves v_y to the integral; without the pair-gap evidence 1.28°, but a "
+                   "pair gap of 0.5 m/s instead of 0.2 already lets the simulator's low-μ "
+                   "slide drift (ait_slippery v_y RMSE 0.058 → 0.685 m/s)")
+def test_revs_sideslip_beats_zero_sideslip() -> None:
+    truth, est = _revs()
+    assert _beta_rmse(truth, est) < _beta_rmse(truth, est.assign(vy=0.0))
+
+
+@pytest.mark.skipif(not REVS.exists(), reason=f"Revs log not found at {REVS}")
+@pytest.mark.parametrize("scale", [
+    pytest.param(0.85, marks=pytest.mark.xfail(strict=True, reason="β 4.15° against 1.93°: "
+                                               "a_y read low drifts v_y within the one-sided "
+                                               "bounds of the axles flagged saturated")),
+    1.15])
+def test_revs_sideslip_does_not_follow_the_lateral_accelerometer_scale(scale: float) -> None:
+    """a_y × 0.85 or × 1.15 (an unknown roll gravity of ±8°/g, or a scale error) moves β by at
+    most 0.2° (the issue's bound). Measured: × 1.15 1.76° (0.17 from the nominal 1.93°),
+    × 0.85 4.15° (a miss)."""
+    nominal = _beta_rmse(*_revs())
+    assert abs(_beta_rmse(*_revs(scale)) - nominal) <= 0.2
+
+
+@pytest.mark.skipif(not CAMPAIGN.exists(), reason=f"campaign logs not found at {CAMPAIGN}")
+@pytest.mark.parametrize(("scenario", "truth_deg_per_g", "tol"), [
+    ("s1_023_mixed", 0.0, 1.5),  # INS-type, gravity-free a_y: no roll in it
+    ("s1_040_step_steer", 3.8, 1.5),  # body-fixed specific force; ref_roll/a_y = 3.8°/g
+])
+def test_roll_gradient_is_identified_without_a_roll_rate(scenario: str, truth_deg_per_g: float,
+                                                         tol: float) -> None:
+    """Crossplant campaign logs without roll rate, whose vehicle file has no [suspension]: the
+    identified roll gradient (φ/a_y at the end) is within 1.5°/g of the a_y's own (0 for the
+    INS log, measured 0.7; 3.8°/g for the other, measured 3.0), where the file's default
+    suspension said 8.5°/g for both."""
+    truth = pd.read_parquet(CAMPAIGN / f"{scenario}.parquet")
+    vehicle = load_vehicle(CAMPAIGN / f"{scenario}.toml")
+    est = Pipeline(vehicle).run(_measured(truth))
+    k = est["roll"].iloc[-1] / truth["ay"].iloc[-1] * DEG_PER_G
+    assert abs(k - truth_deg_per_g) <= tol
