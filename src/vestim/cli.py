@@ -298,7 +298,7 @@ def estimate_cmd(
             meta = {"vehicle": veh.name, "force": cfg.force, "normal": cfg.normal,
                     "velocity": cfg.velocity, "fusion": cfg.fusion, "source": str(log_path),
                     **_provenance(vehicle, cfg),
-                    **pipe.force.input_sources,
+                    **pipe.force.input_sources, **pipe.force.roll_assumption,
                     "warnings": json.dumps([w.as_dict() for w in warnings], ensure_ascii=False),
                     "gaps": json.dumps(pipe.gaps)}
             writer.metadata.update(meta)

@@ -5,7 +5,7 @@ Issue 13's figures: where a tire is flagged excited, μ̂ within 0.1 of ``ref_mu
 x09 drop (0.8 → 0.3) detected within 1 s of the tire first using 80 % of the new friction.
 Measured with the default pipeline (per log: share of corner-samples flagged, largest
 |μ̂ − μ| where flagged): x01 1.1 % / 0.052, x02 15.1 % / 0.090, x03 1.0 % / 0.040,
-x04 2.3 % / 0.044, x09 0.6 % / 0.063, x06 (wet ramp steer) 338 corner-samples / 0.029 since
+x04 2.3 % / 0.044, x09 0.6 % / 0.063, x06 (wet ramp steer) 637 corner-samples / 0.046 since
 the lateral filter's re-acquisition (issue 29; 0.123 before, with v_y 0.4 m/s off), x05 x08
 x10 x11 x12 never flagged (x10 was flagged at 5–7 m/s with slip angles 2–4° off, 0.733). Miss:
 x07 (0.186: the rear-left force is estimated 0.13 low in the braking turn, and μ̂ with it).

@@ -57,7 +57,7 @@ import numpy as np
 import pandas as pd
 from numba import njit
 
-from vestim.constants import CORNERS
+from vestim.constants import CORNERS, G
 from vestim.errors import LogFormatError
 from vestim.estimators.force import lateral as lat
 from vestim.estimators.force import longitudinal as lon
@@ -534,6 +534,23 @@ class ForceEstimator:
         """Record where a chunk's optional inputs came from (see :attr:`input_sources`)."""
         for key, value in sources.items():
             self._seen.setdefault(key, set()).add(value)
+
+    @property
+    def roll_assumption(self) -> dict[str, str]:
+        """The roll gradient used without a roll rate, for output metadata:
+        ``roll_gradient_source`` ("identified" from the log, "suspension" of the vehicle
+        file, "calibrated") and ``roll_gradient_deg_per_g`` (the value now, °/g). Empty when
+        every sample so far had a roll rate (the gradient is not used then)."""
+        if self.input_sources.get("roll_source", "rate") == "rate":
+            return {}
+        p = self._att_prm
+        if p.roll_identify:
+            source, k = "identified", nrm.roll_gradient_solve(p, self._att)
+        else:
+            source = "suspension" if "suspension" in self.vehicle.given else "calibrated"
+            k = p.c_roll
+        return {"roll_gradient_source": source,
+                "roll_gradient_deg_per_g": f"{math.degrees(k) * G:.2f}"}
 
     @property
     def torque_source(self) -> str | None:

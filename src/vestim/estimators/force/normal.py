@@ -129,6 +129,13 @@ def _roll_gradient(prm: AttitudeKernelParams, state: np.ndarray, dt: float, ay: 
         state[11] += w
         state[12] += w * x * e
         state[13] += w * e
+    return roll_gradient_solve(prm, state)
+
+
+@njit(**_JIT)
+def roll_gradient_solve(prm: AttitudeKernelParams, state: np.ndarray) -> float:
+    """The roll gradient k (rad per m/s²) that :func:`_roll_gradient`'s sums and priors give
+    (the prior k₀ before any sample), clipped to :data:`ROLL_GRADIENT_RANGE`."""
     pk = 1.0 / (prm.roll_gradient_sd * prm.roll_gradient_sd)
     pb = 1.0 / (ROLL_BIAS_SD * ROLL_BIAS_SD)
     m11 = state[9] + pk

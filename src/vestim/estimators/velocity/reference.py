@@ -23,10 +23,11 @@ Measurements, sequential scalar updates per sample:
   cornering stiffness (α = −F_y/C_y): v_y = v_x(α_f + δ) − l_f r and v_y = v_x α_r + l_r r
   (single-track kinematics), pseudo-measurements whose σ grows with the slip angle
   (stiffness uncertainty) and the sideslip acceleration (sliding), gated at ``gate_vy``.
-  The friction is unknown, so an axle at the largest slip angle the car has shown so far
-  (the demonstrated friction), or whose v_y disagrees with the other axle's, gives only a
-  one-sided bound; v_y then comes from the integral, whose drift b_y (learnt while the
-  tires were linear) holds down. Both axles rejected for ``reacquire_s`` re-acquire them.
+  The friction is unknown, so an axle beyond the linear range, or whose v_y disagrees with
+  the other axle's, gives only a one-sided bound; v_y then comes from the integral, whose
+  drift b_y (learnt while the tires were linear) holds down. Both axles rejected for
+  ``reacquire_s`` while they agree and are below the friction the car has demonstrated
+  re-acquire them (the integral drifted, not the tires).
 
 v_y's process noise is the log's own: the measured white noise of f_y and its relative
 model error (scale, roll gravity), so a noisy or vibrating IMU leans on the tire model.
@@ -128,20 +129,20 @@ class ReferenceParams:
         k_comb: slip ratio λ_c of an axle's wheels at which the v_y bound's one-sidedness
             doubles (side_vy / (1 + (λ/λ_c)²)): a tire in longitudinal slip is in combined
             slip and makes less lateral force than the linear tire says.
-        alpha_lin: floor (rad) of the demonstrated slip angle α_d below (see ``demo_ratio``).
-        demo_ratio: the v_y pseudo-measurements are half way from a value (k_rel, tau_vy,
-            side_vy, gate_vy: the linear range, with the stiffness identified online) to a
-            bound (the ``*_sat`` values: a saturating tire of unknown friction) at the
-            linear-tire slip angle |α| = demo_ratio·α_d, blend 1/(1 + (α/(demo_ratio α_d))⁴),
-            where α_d is the largest |α| of either axle so far (forgotten over
-            ``demo_tau``, at least ``alpha_lin``): the friction the car has demonstrated. An
-            axle below it is evidence of the linear range on this road, an axle at it may be
-            at the limit. The fixed threshold it replaces (|α| = 0.015 rad) put 51–61 % of a
-            race car's samples into saturation, where its tires are linear to μ = 1.2, and
-            the one-sided bounds then let v_y drift (Revs: β 11.5°). 0 restores that fixed
-            threshold at ``alpha_lin``.
-        demo_tau: forgetting time of the demonstrated slip angle, s (a road whose friction
-            drops shows it only as a pair gap until then).
+        alpha_lin: linear-tire slip angle |α| (rad) at which the v_y pseudo-measurements are
+            half way from a value (k_rel, tau_vy, side_vy, gate_vy: the linear range, with the
+            stiffness identified online) to a bound (the ``*_sat`` values: a saturating tire
+            of unknown friction), blend 1/(1 + (α/α_lin)⁴).
+        demo_ratio: re-acquisition (``reacquire_s``) counts a rejected sample only while
+            both axles are below demo_ratio·α_d, α_d the largest |α| of either axle so far
+            (forgotten over ``demo_tau``, at least ``alpha_lin``): the friction the car has
+            demonstrated on this road. An axle near it may be sliding, and a slide's
+            linear-tire value is wrong (0.8 let the simulator's brake-in-turn on ice, both
+            axles sliding with no pair gap, be pulled to it: v_y 2.4 → 18.9 %). The same
+            evidence in place of α_lin in the blend (the σ of the bound) took the Revs log's
+            β to 1.93° (2.17 with α_lin) but left the simulator's low-μ slides to the linear
+            tire (v_y 3 → 57 %).
+        demo_tau: forgetting time of the demonstrated slip angle, s.
         k_rel_sat, tau_vy_sat, side_vy_sat, gate_vy_sat: k_rel, tau_vy, side_vy, gate_vy of a
             saturating axle.
         pair_gap: gap between the front and rear linear-tire v_y (m/s) at which both are
@@ -206,7 +207,7 @@ class ReferenceParams:
     torque_dead: float = 20.0
     torque_dead_mu: float = 0.05
     k_comb: float = 0.1
-    alpha_lin: float = 0.005
+    alpha_lin: float = 0.015
     k_rel_sat: float = 1.0
     tau_vy_sat: float = 1.0
     side_vy_sat: float = 0.05
@@ -221,7 +222,7 @@ class ReferenceParams:
     fy_scale_sd: float = 0.02
     tau_fy: float = 1.0
     reacquire_s: float = 1.0
-    demo_ratio: float = 1.0
+    demo_ratio: float = 0.5
     demo_tau: float = 60.0
 
     def __post_init__(self) -> None:
@@ -996,6 +997,7 @@ def _reference_rows(prm: ReferenceKernelParams, st: ReferenceState, start: int, 
             for a in range(2):
                 if not np.isnan(axle_slip[k, a]):
                     alpha_demo[0] = max(alpha_demo[0], abs(axle_slip[k, a]))
+        below_demo = True
         n_lat = 0
         n_lat_ok = 0
         innov_lat = 0.0
@@ -1008,10 +1010,10 @@ def _reference_rows(prm: ReferenceKernelParams, st: ReferenceState, start: int, 
             # short correlation, pulled on both sides; towards saturation (friction unknown)
             # only a bound: σ k_rel_sat |v_x α|, a second of correlation, one-sided, 3σ gate.
             # h blends the two by the slip angle itself.
-            if prm.demo_ratio > 0.0:
-                q = (alpha / max(prm.demo_ratio * alpha_demo[0], prm.alpha_lin)) ** 2
-            else:
-                q = (alpha / prm.alpha_lin) ** 2
+            q = (alpha / prm.alpha_lin) ** 2
+            if prm.demo_ratio > 0.0 and abs(alpha) >= prm.demo_ratio * max(alpha_demo[0],
+                                                                           prm.alpha_lin):
+                below_demo = False
             h = h_pair / (1.0 + q * q)
             sig = ((prm.k_rel_sat + h * (prm.k_rel - prm.k_rel_sat)) * abs(x[VX] * alpha)
                    + prm.k_vy * beta_acc)
@@ -1030,12 +1032,18 @@ def _reference_rows(prm: ReferenceKernelParams, st: ReferenceState, start: int, 
                 innov_lat = z - x[VY]
             else:
                 n_lat_ok += 1
-        # Re-acquisition: both axles rejected at every sample for reacquire_s means v_y has
-        # left them (an integral that drifted, a wrong roll or stiffness), not that both
-        # saturate for that long: v_y's variance is raised to the squared innovation, so the
-        # next pseudo-measurement passes its gate and pulls v_y back.
+        # Re-acquisition: both axles rejected for reacquire_s while they agree with each
+        # other (pair gap below pair_gap: the single-track kinematics hold, so the tires are
+        # in their linear range) means v_y has left them (an integral that drifted, a wrong
+        # roll or scale), not that they saturate: v_y's variance is raised to the squared
+        # innovation, so the next pseudo-measurement passes its gate and pulls v_y back.
+        # Axles that disagree (a slide: the linear slip angle under-states it) hold the
+        # count; an accepted one clears it.
         if n_lat > 0:
-            t_vy_rej[0] = t_vy_rej[0] + dt if n_lat_ok == 0 else 0.0
+            if n_lat_ok > 0:
+                t_vy_rej[0] = 0.0
+            elif h_pair >= 0.5 and below_demo:
+                t_vy_rej[0] += dt
             if t_vy_rej[0] >= prm.reacquire_s:
                 P[VY, VY] += innov_lat * innov_lat
                 t_vy_rej[0] = 0.0
