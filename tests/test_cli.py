@@ -202,3 +202,39 @@ def test_non_finite_or_mistyped_options_are_clear_errors(tmp_path):
     res = runner.invoke(app, ["estimate", str(src), "--out", str(tmp_path / "e.parquet"),
                               "--config", str(cfg)])
     assert res.exit_code == 2 and "gains = 5: the path of a gains file" in res.output
+
+
+def test_estimate_metadata_states_the_roll_gradient_and_warns_of_unverified_vy(tmp_path):
+    """Issue 29: the crossplant ramp steer without roll rate (its file states no
+    [suspension]): the metadata says the roll gradient was identified and how large (6.7°/g
+    measured, where the file's default suspension said 11.3°/g); our simulator's AWD slide on
+    ice warns that v_y was unverified on 30 % of the rows (the a_y integral alone)."""
+    import json
+    from pathlib import Path
+
+    import pandas as pd
+    import pytest
+
+    data = Path(__file__).resolve().parents[1].parent / "shared" / "crossplant" / "data"
+    if not data.exists():
+        pytest.skip(f"crossplant data not found at {data}")
+    log = pd.read_parquet(data / "x06_ramp_steer_wet_fwd.parquet")
+    src = tmp_path / "x06.parquet"
+    log[[c for c in log.columns if not c.startswith("ref_") and c != "roll_rate"]].to_parquet(src)
+    out = tmp_path / "est.parquet"
+    res = runner.invoke(app, ["estimate", str(src), "--vehicle", str(data / "vehicle1.toml"),
+                              "--out", str(out)])
+    assert res.exit_code == 0, res.output
+    meta = read_log(out).attrs
+    assert meta["roll_gradient_source"] == "identified"
+    assert 3.0 <= float(meta["roll_gradient_deg_per_g"]) <= 9.0
+
+    sim, est = tmp_path / "sim.parquet", tmp_path / "slide.parquet"
+    assert runner.invoke(app, ["simulate", "ait_slippery", "--tire", "lugre", "--drivetrain",
+                               "awd", "--out", str(sim)]).exit_code == 0
+    res = runner.invoke(app, ["estimate", str(sim), "--vehicle", "hashemi_suv",
+                              "--out", str(est)])
+    assert res.exit_code == 0, res.output
+    warned = [w for w in json.loads(read_log(est).attrs["warnings"])
+              if w["check"] == "lateral_consistency"]
+    assert len(warned) == 1 and warned[0]["evidence"] == pytest.approx(0.30, abs=0.03)

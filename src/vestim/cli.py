@@ -299,7 +299,9 @@ def estimate_cmd(
                     "velocity": cfg.velocity, "fusion": cfg.fusion, "source": str(log_path),
                     **_provenance(vehicle, cfg),
                     **pipe.force.input_sources, **pipe.force.roll_assumption,
-                    "warnings": json.dumps([w.as_dict() for w in warnings], ensure_ascii=False),
+                    "warnings": json.dumps([w.as_dict() for w in warnings]
+                                           + [w for w in [pipe.unverified_warning()] if w],
+                                           ensure_ascii=False),
                     "gaps": json.dumps(pipe.gaps)}
             writer.metadata.update(meta)
         path, rows, channels = writer.path, writer.rows, len(writer.columns) - 1

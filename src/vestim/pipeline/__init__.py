@@ -191,6 +191,11 @@ class Pipeline:
         self._held_now = False  # step() held a dropped input in this sample
         self._post: tuple[Any, ...] | None = None  # _fast_post's index arrays and buffers
         self.gaps: list[tuple[float, float]] = []  # time gaps (s) the filters restarted after
+        self.vy_unverified_rows = 0
+        """Rows of the last run whose v_y had no accepted pseudo-measurement for
+        ``validity.unverified_s`` (reason bit 64), and all its rows: the consistency
+        monitor's figure for the output metadata (:meth:`unverified_warning`)."""
+        self.rows_estimated = 0
         self._health_prm = health_params(self.config.health, vehicle.body.wheel_radius)
         self._health_state = new_health_state()
         self._imu_prm = imu_health_params(self.config.imu_health, b.wheel_radius, b.track_f,
@@ -235,6 +240,26 @@ class Pipeline:
         self._step_args = None
         self._step_fn = None
         self._step_rates = None
+
+    def unverified_warning(self) -> dict[str, str | float | None] | None:
+        """The consistency monitor's warning for the output metadata (the shape of
+        :meth:`vestim.io.sanity.Finding.as_dict`), or None: after :meth:`run`, where at least
+        :data:`UNVERIFIED_WARN` of the rows had v_y unverified (reason bit 64: no v_y
+        pseudo-measurement accepted for ``validity.unverified_s``, v_y the a_y integral
+        alone)."""
+        if self.rows_estimated == 0:
+            return None
+        share = self.vy_unverified_rows / self.rows_estimated
+        if share < UNVERIFIED_WARN:
+            return None
+        return {"channel": "vy", "severity": "warning",
+                "message": (f"v_y unverified on {100 * share:.1f} % of the rows: the tire "
+                            "model's v_y and the a_y integral disagreed for more than "
+                            f"{self.config.validity.unverified_s:g} s (a slide, a cornering "
+                            "stiffness or roll the vehicle file does not know, or an "
+                            "accelerometer scale error); v_y, β and the slip angles there are "
+                            "the integral alone (reason_velocity bit 64, 'v_y unverified')"),
+                "evidence": share, "check": "lateral_consistency"}
 
     def _yaw_acceleration(self, t: np.ndarray, r: np.ndarray) -> np.ndarray:
         """Backward difference of the gyro across chunk boundaries (0 at the first sample)."""
@@ -346,11 +371,12 @@ class Pipeline:
             vel = self.reference.advance(u.t, np.full_like(u.omega, np.nan), u.torque, mu_x_c,
                                          axle_slip, res["f_x"], res["f_y"], u.yaw_rate,
                                          u.delta, extra, var, fx_from_speed=not u.ax_measured)
-            v, sig, bias = vel["v"], vel["sigma"], vel["bias"][:, 0]
+            v, sig, bias, unverified = (vel["v"], vel["sigma"], vel["bias"][:, 0],
+                                          vel["bias"][:, 3])
         elif method == "kinematic":
             v = self.kinematic.advance(u.t, u.omega, res["f_x"], res["f_y"], u.yaw_rate)
             sig = np.full_like(v, np.nan)
-            bias = np.full(n, np.nan)
+            bias = unverified = np.full(n, np.nan)
         elif method == "fused":
             # Corner estimates are information where the wheel speeds have none: they
             # enter (σ = sigma_corner_slip, inflated by the filter for their correlation
@@ -381,12 +407,14 @@ class Pipeline:
                 vel = self.fused.advance(u.t, u.omega, u.torque, mu_x_c, axle_slip, res["f_x"],
                                          res["f_y"], u.yaw_rate, u.delta, extra2, var2,
                                          fx_from_speed=not u.ax_measured)
-            v, sig, bias = vel["v"], vel["sigma"], vel["bias"][:, 0]
+            v, sig, bias, unverified = (vel["v"], vel["sigma"], vel["bias"][:, 0],
+                                          vel["bias"][:, 3])
         else:
             vel = self.reference.advance(u.t, u.omega, u.torque, mu_x_c, axle_slip, res["f_x"],
                                          res["f_y"], u.yaw_rate, u.delta, extra, var,
                                          fx_from_speed=not u.ax_measured)
-            v, sig, bias = vel["v"], vel["sigma"], vel["bias"][:, 0]
+            v, sig, bias, unverified = (vel["v"], vel["sigma"], vel["bias"][:, 0],
+                                          vel["bias"][:, 3])
             if self.corner is not None:
                 out = self._corners(u, res, mu_x_c, vel)
                 # CG v_x by the fusion stage; v_y from the reference filter.
@@ -406,7 +434,10 @@ class Pipeline:
                           u.ax if u.ax_measured else res["f_x"], u.ay, fz, vxt, vyt, slip_ratio,
                           c_y, self._unc_prm, self._unc_state)
         res.update({f"uncertainty.{k}": a for k, a in unc.items()})
-        res.update({"v": v, "sigma_v": sig, "bias": bias, "vx_i": vx_i, "vy_i": vy_i,
+        self.vy_unverified_rows += int(np.sum(unverified >= self.config.validity.unverified_s))
+        self.rows_estimated += n
+        res.update({"v": v, "sigma_v": sig, "bias": bias, "vy_unverified": unverified,
+                    "vx_i": vx_i, "vy_i": vy_i,
                     "cornering_stiffness": c_y, "radius_scale": scale,
                     "gnss_latency": latency,
                     "vxt": vxt, "vyt": vyt,
@@ -426,7 +457,7 @@ class Pipeline:
                             u.delta[:, :2], u.ay,
                             self._chunk_faulty if self._chunk_faulty is not None
                             else np.full(n, self._held_now),
-                            self.config.validity))
+                            self.config.validity, res["vy_unverified"]))
         return res
 
     @staticmethod
@@ -491,8 +522,8 @@ class Pipeline:
             post = _compiled(online.post_step_kernel, self._friction_prm,
                              self._friction_state, self._validity_prm, self._unc_prm,
                              self._unc_state, np.empty(1), np.empty(1, dtype=np.int64),
-                             np.empty(1, dtype=np.int64), np.empty(1), False, 0.0, health[0],
-                             health3[0], np.empty(1))
+                             np.empty(1, dtype=np.int64), np.empty(1), False, 0.0, 0.0,
+                             health[0], health3[0], np.empty(1))
             self._step_calls = (wheel, imu, post)
         return self._step_calls
 
@@ -621,6 +652,8 @@ class Pipeline:
         """
         self.reset()
         self.gaps = []
+        self.vy_unverified_rows = 0
+        self.rows_estimated = 0
         b = self.vehicle.body
         health_state, imu_state = new_health_state(), new_imu_state()
         names: list[str] = []
@@ -785,9 +818,11 @@ class Pipeline:
         ones = _ONES
         wheel = ones if self._chunk_health is None else self._health_buf[2][0]
         imu = ones if self._chunk_imu is None else self._imu_buf[3][0]
+        ref = self.reference if self._fused_is_reference else self.fused  # the one output
         self._calls()[2](self._friction_prm, self._friction_state, self._validity_prm,
                          self._unc_prm, self._unc_state, out, ix, ix_unc, s,
-                         bool(self._held_now), self._t_start, wheel, imu, post)
+                         bool(self._held_now), self._t_start,
+                         float(ref.state.t_vy_unverified[0]), wheel, imu, post)
         row.update(zip(_POST_NAMES, post.tolist(), strict=True))
 
 
@@ -806,6 +841,10 @@ _POST_NAMES: tuple[str, ...] = (
     *SIGMA_NAMES)
 """The names of :func:`online.post_step_kernel`'s ``post`` row, in order (step()'s row
 order)."""
+
+
+UNVERIFIED_WARN = 0.01
+"""Share of a run's rows with v_y unverified from which the output metadata warns."""
 
 
 def _compiled(kernel: Any, *args: Any) -> Callable[..., None]:

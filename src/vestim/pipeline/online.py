@@ -162,7 +162,7 @@ def step_kernel(s: np.ndarray, out: np.ndarray, fprm: np.ndarray,
     none_v = np.full((1, 0), np.nan)
     v_ref = np.empty((1, 2))
     sig_ref = np.empty((1, 2))
-    bias_ref = np.empty((1, 3))
+    bias_ref = np.empty((1, 4))
     trust = np.empty((1, 4))
     same = fused and pstate[2] == 1.0
     if same:
@@ -242,7 +242,7 @@ def step_kernel(s: np.ndarray, out: np.ndarray, fprm: np.ndarray,
                 var[0, 0] = ref_prm.sigma_corner_slip ** 2
             v = np.empty((1, 2))
             sig = np.empty((1, 2))
-            bias = np.empty((1, 3))
+            bias = np.empty((1, 4))
             reference_step(ref_prm, fus_st, 0, t1, omega, torque, mu_x, axle, fxa, fya, r1,
                            delta, extra, var, v, sig, bias, trust)
     # --- outputs (Pipeline._groups order) ---
@@ -340,8 +340,8 @@ N_POST = 3 * 4 + 2 * N_GROUPS + 4 + 3 + N_SIGMA
 def post_step_kernel(fp: FrictionKernelParams, fs: FrictionState, vp: ValidityKernelParams,
                      up: UncertaintyKernelParams, us: UncertaintyState, out: np.ndarray,
                      ix: np.ndarray, ix_unc: np.ndarray, s: np.ndarray, held: bool,
-                     t_start: float, wheel_health: np.ndarray, imu_health: np.ndarray,
-                     post: np.ndarray) -> None:
+                     t_start: float, vy_unverified: float, wheel_health: np.ndarray,
+                     imu_health: np.ndarray, post: np.ndarray) -> None:
     """The friction, validity and uncertainty stages of one sample of :func:`step_kernel`'s
     output row ``out`` (their steps, as the batch kernels call them, so step equals run),
     and the row's health flags, into ``post`` (:data:`N_POST`,): per corner μ, σ_μ and the
@@ -349,6 +349,8 @@ def post_step_kernel(fp: FrictionKernelParams, fs: FrictionState, vp: ValidityKe
     (4) and the IMU health (3) copied from ``wheel_health`` and ``imu_health``; the
     uncertainty stage's σ (in :data:`~vestim.estimators.uncertainty.OUTPUT_NAMES` order).
 
+    ``vy_unverified``: the time since the reference filter last accepted a v_y
+    pseudo-measurement, s (the validity stage's "v_y unverified").
     ``ix`` holds the positions in ``out`` of t, v_x, σ_vy, the cornering stiffness, then per
     corner F_x, F_y, F_z, σ_Fx, σ_Fy, slip ratio, slip angle (4 each); ``ix_unc`` those of
     v_x, σ_vx, σ_vy (the filter's), the cornering stiffness, then per corner F_z, v_xt,
@@ -370,8 +372,8 @@ def post_step_kernel(fp: FrictionKernelParams, fs: FrictionState, vp: ValidityKe
         post[3 * c], post[3 * c + 1], post[3 * c + 2] = mu[c], smu[c], ex[c]
     n_g = N_GROUPS
     valid, reason = np.empty(n_g), np.empty(n_g)
-    validity_step(vp, t, t_start, vx, sr, sa, s[S_DELTA], s[S_DELTA + 1], s[S_AY], held,
-                  valid, reason)
+    validity_step(vp, t, t_start, vx, sr, sa, s[S_DELTA], s[S_DELTA + 1], s[S_AY],
+                  vy_unverified, held, valid, reason)
     for g in range(n_g):
         post[12 + 2 * g], post[13 + 2 * g] = valid[g], reason[g]
     j = 12 + 2 * n_g

@@ -15,6 +15,7 @@ from vestim.estimators.validity import (
     REVERSE,
     STANDSTILL,
     UNOBSERVABLE,
+    VY_UNVERIFIED,
     ValidityKernelParams,
     ValidityParams,
     validity,
@@ -22,10 +23,11 @@ from vestim.estimators.validity import (
 )
 
 
-def _flags(vx, slip=0.0, alpha=0.0, delta=0.05, ay=2.0, held=False, t=5.0):
+def _flags(vx, slip=0.0, alpha=0.0, delta=0.05, ay=2.0, held=False, t=5.0, unverified=0.0):
     one = lambda v: np.array([v], dtype=float)  # noqa: E731
     return validity(one(t), 0.0, one(vx), np.full((1, 4), slip), np.full((1, 4), alpha),
-                    np.full((1, 2), delta), one(ay), np.array([held]), ValidityParams())
+                    np.full((1, 2), delta), one(ay), np.array([held]), ValidityParams(),
+                    one(unverified))
 
 
 @pytest.mark.parametrize(("kw", "group", "bit"), [
@@ -36,6 +38,8 @@ def _flags(vx, slip=0.0, alpha=0.0, delta=0.05, ay=2.0, held=False, t=5.0):
     ({"alpha": -0.2}, "velocity", HIGH_SLIP),
     ({"delta": 0.0, "ay": 0.0}, "force", UNOBSERVABLE),
     ({"held": True}, "force", INPUT_FAULTY),
+    ({"unverified": 1.0}, "velocity", VY_UNVERIFIED),  # 1 s: ValidityParams.unverified_s
+    ({"unverified": 1.0}, "slip", VY_UNVERIFIED),
 ])
 def test_each_reason(kw: dict, group: str, bit: int):
     args = {"vx": 20.0, **kw}
@@ -50,6 +54,10 @@ def test_a_clean_row_is_valid_everywhere_and_bits_stay_in_their_groups():
     hs = _flags(20.0, slip=0.3)  # high slip concerns velocity, not the force or slip rows
     assert hs["valid_force"][0] == 1.0 and hs["valid_slip"][0] == 1.0
     assert hs["valid_velocity"][0] == 0.0
+    late = _flags(20.0, unverified=0.99)  # just under the 1 s of validity.unverified_s
+    assert late["valid_velocity"][0] == 1.0
+    un = _flags(20.0, unverified=5.0)  # v_y unverified says nothing about the forces
+    assert un["valid_force"][0] == 1.0 and un["valid_velocity"][0] == 0.0
 
 
 def test_pipeline_writes_the_flags_and_step_matches_run():

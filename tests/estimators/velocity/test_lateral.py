@@ -17,6 +17,7 @@ import pandas as pd
 import pytest
 
 from vestim.constants import G
+from vestim.estimators.validity import VY_UNVERIFIED
 from vestim.estimators.velocity.reference import ReferenceFilter, ReferenceParams
 from vestim.io import load_vehicle
 from vestim.pipeline import Pipeline
@@ -68,10 +69,15 @@ def test_locked_out_vy_reacquires_within_a_second(reacquire_s: float, recovers: 
     out = filt.advance(**{k: np.ascontiguousarray(v[half:]) for k, v in inp.items()})
     vy = out["v"][:, 1]
     after = vy[int(1.5 * FS):]
+    unverified = out["bias"][:, 3]  # s since a v_y pseudo-measurement was last accepted
     if recovers:
         assert np.abs(after).max() < 0.05
+        assert unverified[int(1.5 * FS):].max() == 0.0
     else:
         assert np.abs(after).min() > 2.9
+        # The consistency monitor's figure: 5 s unverified at the end (validity bit 64
+        # from 1 s on).
+        assert unverified[-1] == pytest.approx(5.0, abs=0.01)
 
 
 def test_lateral_process_noise_follows_the_logs_own_noise() -> None:
@@ -113,6 +119,17 @@ def test_revs_sideslip_and_speed_no_longer_drift() -> None:
     truth, est = _revs()
     assert _beta_rmse(truth, est) <= 2.3
     assert float(np.sqrt(np.mean((est["vx"] - truth["ref_vx"]) ** 2))) <= 0.1
+
+
+@pytest.mark.skipif(not REVS.exists(), reason=f"Revs log not found at {REVS}")
+def test_revs_sigma_vy_covers_its_error() -> None:
+    """σ_vy means what it says on the real log: |v_y error| ≤ σ_vy on 75 % of the samples
+    and ≤ 2σ on 95 % (bounds 60–90 % and ≥ 90 %; a Gaussian has 68 and 95). Before issue 29
+    σ_vy was 3–32 times smaller than the error on the real logs where v_y diverged."""
+    truth, est = _revs()
+    err = np.abs(est["vy"] - truth["ref_vy"])
+    assert 0.6 <= float(np.mean(err <= est["sigma_vy"])) <= 0.9
+    assert float(np.mean(err <= 2 * est["sigma_vy"])) >= 0.9
 
 
 @pytest.mark.skipif(not REVS.exists(), reason=f"Revs log not found at {REVS}")
@@ -161,3 +178,26 @@ def test_roll_gradient_is_identified_without_a_roll_rate(scenario: str, truth_de
     stated = pipe.force.roll_assumption
     assert stated["roll_gradient_source"] == "identified"
     assert float(stated["roll_gradient_deg_per_g"]) == pytest.approx(k, abs=0.01)
+
+
+@pytest.mark.parametrize(("maneuver", "share"), [("ait_slippery", 0.30), ("lc_wet", 0.0)])
+def test_unverified_vy_is_flagged_and_warned(maneuver: str, share: float) -> None:
+    """Our simulator's AWD slide on ice (LuGre): both axles' linear-tire v_y are rejected
+    for 30 % of the rows (the integral alone carries v_y there), which the validity flags
+    mark (reason_velocity bit 64) and the output metadata warns of; a wet lane change on the
+    same car has none (both measured)."""
+    from vestim.sim import get_maneuver, simulate
+
+    veh = load_vehicle("hashemi_suv")
+    log = simulate(get_maneuver(maneuver, tire="lugre", drivetrain="awd"), veh, seed=1)
+    pipe = Pipeline(veh)
+    est = pipe.run(_measured(log))
+    flagged = (est["reason_velocity"].astype(int) & VY_UNVERIFIED) > 0
+    assert float(flagged.mean()) == pytest.approx(share, abs=0.03)
+    assert (est["valid_velocity"][flagged] == 0.0).all()
+    warning = pipe.unverified_warning()
+    if share > 0:
+        assert warning is not None and warning["check"] == "lateral_consistency"
+        assert "bit 64" in str(warning["message"])
+    else:
+        assert warning is None

@@ -15,11 +15,14 @@ bit    reason              when
                            lateral load (|δ| < ``straight_delta`` and |a_y| < ``straight_ay``):
                            the left/right shares then come from the model, not the data
 32     input faulty        :meth:`~vestim.pipeline.Pipeline.step` held a dropped input value
+64     v_y unverified      the reference filter has accepted no v_y pseudo-measurement for
+                           ``unverified_s``: the tire model and the a_y integral disagree (a
+                           slide, or an integral that drifted), and v_y is the integral alone
 =====  ==================  ====================================================================
 
-Groups and the reasons that apply to them: ``velocity`` (1, 2, 4, 8, 32), ``force``
-(1, 2, 4, 16, 32), ``slip`` (1, 2, 4, 32). A bit that does not apply to a group is never set
-in its mask.
+Groups and the reasons that apply to them: ``velocity`` (1, 2, 4, 8, 32, 64), ``force``
+(1, 2, 4, 16, 32), ``slip`` (1, 2, 4, 32, 64). A bit that does not apply to a group is never
+set in its mask.
 """
 
 from __future__ import annotations
@@ -33,13 +36,15 @@ from numba import njit
 from vestim.params import check_ranges, pack
 
 NOT_CONVERGED, STANDSTILL, REVERSE, HIGH_SLIP, UNOBSERVABLE, INPUT_FAULTY = 1, 2, 4, 8, 16, 32
+VY_UNVERIFIED = 64
 REASONS: dict[int, str] = {NOT_CONVERGED: "not converged", STANDSTILL: "standstill",
                            REVERSE: "reverse", HIGH_SLIP: "high slip",
-                           UNOBSERVABLE: "unobservable", INPUT_FAULTY: "input faulty"}
+                           UNOBSERVABLE: "unobservable", INPUT_FAULTY: "input faulty",
+                           VY_UNVERIFIED: "v_y unverified"}
 GROUPS: dict[str, int] = {
-    "velocity": NOT_CONVERGED | STANDSTILL | REVERSE | HIGH_SLIP | INPUT_FAULTY,
+    "velocity": NOT_CONVERGED | STANDSTILL | REVERSE | HIGH_SLIP | INPUT_FAULTY | VY_UNVERIFIED,
     "force": NOT_CONVERGED | STANDSTILL | REVERSE | UNOBSERVABLE | INPUT_FAULTY,
-    "slip": NOT_CONVERGED | STANDSTILL | REVERSE | INPUT_FAULTY,
+    "slip": NOT_CONVERGED | STANDSTILL | REVERSE | INPUT_FAULTY | VY_UNVERIFIED,
 }
 """The reason bits each group's mask can hold."""
 
@@ -54,6 +59,7 @@ class ValidityParams:
     high_slip_angle: float = 0.14
     straight_delta: float = 0.005
     straight_ay: float = 0.3
+    unverified_s: float = 1.0
 
     def __post_init__(self) -> None:
         check_ranges(self, "validity", nonnegative=(f.name for f in fields(self)))
@@ -73,6 +79,7 @@ class ValidityKernelParams(NamedTuple):
     high_slip_angle: float
     straight_delta: float
     straight_ay: float
+    unverified_s: float
 
 
 def validity_params(p: ValidityParams) -> ValidityKernelParams:
@@ -88,12 +95,14 @@ MASKS = np.array(list(GROUPS.values()), dtype=np.int64)
 @njit(cache=True, error_model="numpy", inline="always")
 def validity_step(p: ValidityKernelParams, t: float, t_start: float, vx: float,
                   slip_ratio: np.ndarray, slip_angle: np.ndarray, delta_l: float,
-                  delta_r: float, ay: float, held: bool, valid: np.ndarray,
-                  reason: np.ndarray) -> None:
+                  delta_r: float, ay: float, vy_unverified: float, held: bool,
+                  valid: np.ndarray, reason: np.ndarray) -> None:
     """The flags of the module docstring for one sample at time ``t`` (s; ``t_start`` the
     log's first, s): CG ``vx`` (m/s), per-corner ``slip_ratio`` and ``slip_angle`` (4,)
     (NaN: not known, no flag), the front road-wheel angles ``delta_l``, ``delta_r`` (rad),
-    ``ay`` (m/s²) and ``held`` (an input value was held over a dropout). ``valid`` and
+    ``ay`` (m/s²), ``vy_unverified`` (s since the reference filter last accepted a v_y
+    pseudo-measurement; NaN: no such filter, no flag) and ``held`` (an input value was held
+    over a dropout). ``valid`` and
     ``reason`` (groups,) are written, one entry per :data:`GROUPS` group (stateless)."""
     bits = 0
     if t - t_start < p.converge_s:
@@ -109,6 +118,8 @@ def validity_step(p: ValidityKernelParams, t: float, t_start: float, vx: float,
         bits |= UNOBSERVABLE
     if held:
         bits |= INPUT_FAULTY
+    if vy_unverified >= p.unverified_s:
+        bits |= VY_UNVERIFIED
     for g in range(MASKS.shape[0]):
         m = bits & MASKS[g]
         valid[g] = 1.0 if m == 0 else 0.0
@@ -118,18 +129,19 @@ def validity_step(p: ValidityKernelParams, t: float, t_start: float, vx: float,
 @njit(cache=True, error_model="numpy")
 def validity_kernel(p: ValidityKernelParams, t: np.ndarray, t_start: float, vx: np.ndarray,
                     slip_ratio: np.ndarray, slip_angle: np.ndarray, delta: np.ndarray,
-                    ay: np.ndarray, held: np.ndarray, valid: np.ndarray,
-                    reason: np.ndarray) -> None:
+                    ay: np.ndarray, vy_unverified: np.ndarray, held: np.ndarray,
+                    valid: np.ndarray, reason: np.ndarray) -> None:
     """:func:`validity_step` over a block of samples (see :func:`validity`); ``valid``,
     ``reason`` (n, groups) are written, one column per :data:`GROUPS` entry."""
     for k in range(t.shape[0]):
         validity_step(p, t[k], t_start, vx[k], slip_ratio[k], slip_angle[k], delta[k, 0],
-                      delta[k, 1], ay[k], held[k], valid[k], reason[k])
+                      delta[k, 1], ay[k], vy_unverified[k], held[k], valid[k], reason[k])
 
 
 def validity(t: np.ndarray, t_start: float, vx: np.ndarray, slip_ratio: np.ndarray,
              slip_angle: np.ndarray, delta: np.ndarray, ay: np.ndarray, input_held: np.ndarray,
-             p: ValidityParams) -> dict[str, np.ndarray]:
+             p: ValidityParams, vy_unverified: np.ndarray | None = None
+             ) -> dict[str, np.ndarray]:
     """The flags of the module docstring for a block of samples.
 
     Args:
@@ -138,6 +150,8 @@ def validity(t: np.ndarray, t_start: float, vx: np.ndarray, slip_ratio: np.ndarr
             e.g. no wheel speeds; it raises no flag). delta: front road-wheel angles (n, 2),
             rad. ay: lateral specific force (n,), m/s². input_held: (n,) True where an input
             value was held over a dropout.
+        vy_unverified: (n,) s since the reference filter last accepted a v_y
+            pseudo-measurement (None or NaN: no such filter, no flag).
 
     Returns:
         ``valid_<group>`` (1.0/0.0) and ``reason_<group>`` (the bit mask as a float), (n,).
@@ -145,10 +159,12 @@ def validity(t: np.ndarray, t_start: float, vx: np.ndarray, slip_ratio: np.ndarr
     n = t.shape[0]
     valid, reason = np.empty((n, len(GROUPS))), np.empty((n, len(GROUPS)))
     c = np.ascontiguousarray
+    unverified = np.full(n, np.nan) if vy_unverified is None else vy_unverified
     validity_kernel(validity_params(p), c(t, dtype=np.float64), float(t_start),
                     c(vx, dtype=np.float64), c(slip_ratio, dtype=np.float64),
                     c(slip_angle, dtype=np.float64), c(delta, dtype=np.float64),
-                    c(ay, dtype=np.float64), c(input_held, dtype=np.bool_), valid, reason)
+                    c(ay, dtype=np.float64), c(unverified, dtype=np.float64),
+                    c(input_held, dtype=np.bool_), valid, reason)
     out: dict[str, np.ndarray] = {}
     for j, group in enumerate(GROUPS):
         out[f"valid_{group}"] = valid[:, j]

@@ -723,8 +723,11 @@ class ReferenceState(NamedTuple):
         wheel_v, wheel_slip: (4,) work arrays of a sample (each wheel's CG speed, m/s, and
             its innovation over speed); no memory from one sample to the next.
         fy_var: the online estimate of f_y's white-noise variance, (m/s²)².
-        t_vy_rejected, t_speed_rejected: time (s) for which every v_y pseudo-measurement,
+        t_vy_rejected, t_speed_rejected: time (s) for which every v_y pseudo-measurement
+            (counted only while the axles agree and stay below the demonstrated friction),
             and every CG-speed measurement of a log without wheel speeds, has been rejected.
+        t_vy_unverified: time (s) since a v_y pseudo-measurement was last accepted (v_y is
+            the a_y integral alone meanwhile; the consistency monitor's figure).
     """
 
     x: np.ndarray
@@ -743,6 +746,7 @@ class ReferenceState(NamedTuple):
     t_vy_rejected: np.ndarray
     t_speed_rejected: np.ndarray
     alpha_demo: np.ndarray
+    t_vy_unverified: np.ndarray
 
 
 def reference_params(p: ReferenceParams, radius: float, lf: float, lr: float, xw: np.ndarray,
@@ -770,7 +774,8 @@ def new_reference_state(window: int) -> ReferenceState:
                           n_rejected=np.zeros(1, dtype=np.int64),
                           oldest=np.zeros(1, dtype=np.int64), wheel_v=np.zeros(4),
                           wheel_slip=np.zeros(4), fy_var=np.zeros(1), t_vy_rejected=np.zeros(1),
-                          t_speed_rejected=np.zeros(1), alpha_demo=np.zeros(1))
+                          t_speed_rejected=np.zeros(1), alpha_demo=np.zeros(1),
+                          t_vy_unverified=np.zeros(1))
 
 
 @njit(**_JIT)
@@ -792,6 +797,7 @@ def copy_reference_state(dst: ReferenceState, src: ReferenceState) -> None:
     dst.t_vy_rejected[:] = src.t_vy_rejected
     dst.t_speed_rejected[:] = src.t_speed_rejected
     dst.alpha_demo[:] = src.alpha_demo
+    dst.t_vy_unverified[:] = src.t_vy_unverified
 
 
 @njit(**_JIT)
@@ -807,7 +813,7 @@ def _reference_rows(prm: ReferenceKernelParams, st: ReferenceState, start: int, 
     reference (two atomic reference-count operations), and a call per sample with them
     made the batch kernel 1.5 times slower (and a call with the arrays unpacked, 2.5)."""
     (x, P, hist, t_prev, started, fx_prev, fy_prev, r_prev, n_rejected, oldest_row, wheel_v,
-     wheel_slip, fy_var, t_vy_rej, t_speed_rej, alpha_demo) = st
+     wheel_slip, fy_var, t_vy_rej, t_speed_rej, alpha_demo, t_unverified) = st
     xw, yw = prm.xw, prm.yw
     m = hist.shape[0]
     nx = x.shape[0]
@@ -843,6 +849,7 @@ def _reference_rows(prm: ReferenceKernelParams, st: ReferenceState, start: int, 
             t_vy_rej[0] = 0.0
             t_speed_rej[0] = 0.0
             alpha_demo[0] = 0.0
+            t_unverified[0] = 0.0
             started[0] = True
             for j in range(m):
                 hist[j, 0] = t[k]
@@ -1039,6 +1046,7 @@ def _reference_rows(prm: ReferenceKernelParams, st: ReferenceState, start: int, 
         # innovation, so the next pseudo-measurement passes its gate and pulls v_y back.
         # Axles that disagree (a slide: the linear slip angle under-states it) hold the
         # count; an accepted one clears it.
+        t_unverified[0] = 0.0 if n_lat_ok > 0 else t_unverified[0] + max(dt, 0.0)
         if n_lat > 0:
             if n_lat_ok > 0:
                 t_vy_rej[0] = 0.0
@@ -1067,6 +1075,7 @@ def _reference_rows(prm: ReferenceKernelParams, st: ReferenceState, start: int, 
         out_bias[k, 0] = x[BX]
         out_bias[k, 1] = x[BY]
         out_bias[k, 2] = x[BR]
+        out_bias[k, 3] = t_unverified[0]
 
 
 @njit(**_JIT)
@@ -1098,8 +1107,9 @@ def reference_kernel(prm: ReferenceKernelParams, st: ReferenceState, t: np.ndarr
     nominal cornering stiffness, rad (spec sign: atan(v_yt/v_xt)), NaN where unknown; f_x,
     f_y (m/s²) in the road plane, yaw rate (rad/s), δ (n, 4) rad; ``extra_v``/``extra_var``
     (n, m2): extra CG-speed measurements (m/s) and variances ((m/s)²), NaN where absent.
-    Outputs: out_v (n, 2) [v_x, v_y], out_sig (n, 2), out_bias (n, 3) [b_x, b_y, b_r], out_trust
-    (n, 4) the standard deviation used per wheel (inf where rejected).
+    Outputs: out_v (n, 2) [v_x, v_y], out_sig (n, 2), out_bias (n, 4) [b_x, b_y, b_r, and the
+    time since a v_y pseudo-measurement was last accepted, s], out_trust (n, 4) the standard
+    deviation used per wheel (inf where rejected).
     """
     _reference_rows(prm, st, 0, t.shape[0], t, omega, torque, mu_x, axle_slip, f_x, f_y,
                     yaw_rate, delta, extra_v, extra_var, out_v, out_sig, out_bias, out_trust)
@@ -1150,8 +1160,9 @@ class ReferenceFilter:
                 extra_v: np.ndarray | None = None,
                 extra_var: np.ndarray | None = None,
                 fx_from_speed: bool = False) -> dict[str, np.ndarray]:
-        """Process a chunk; returns v (n, 2) [v_x, v_y] m/s, sigma (n, 2), bias (n, 3) [b_x, b_y]
-        m/s² and b_r rad/s, trust (n, 4).
+        """Process a chunk; returns v (n, 2) [v_x, v_y] m/s, sigma (n, 2), bias (n, 4) [b_x, b_y]
+        m/s², b_r rad/s and the time since v_y's last accepted pseudo-measurement (s),
+        trust (n, 4).
 
         ``axle_slip`` (n, 2) holds the front and rear axle slip angles −F_y/C_y in rad (NaN
         where unknown); ``extra_v``/``extra_var`` (n, m) extra CG-speed measurements, m/s
@@ -1169,7 +1180,7 @@ class ReferenceFilter:
             extra_var = np.full((n, 0), np.nan)
         v = np.empty((n, 2))
         sig = np.empty((n, 2))
-        bias = np.empty((n, 3))
+        bias = np.empty((n, 4))
         trust = np.empty((n, 4))
         prm = self.kernel_params_speed if fx_from_speed else self.kernel_params
         reference_kernel(prm, self.state, t, omega, torque, mu_x, np.ascontiguousarray(axle_slip),
