@@ -241,6 +241,27 @@ def test_imu_frame_and_missing_axes(tmp_path):
         apply_channel_map(src, cmap)
 
 
+def test_imu_acceleration_declares_gravity_free_accelerations(tmp_path):
+    """[imu] acceleration = "gravity_free" (an INS's levelled accelerations) reaches the log's
+    metadata as accelerometer = "gravity_free", which the pipeline follows (issue 29);
+    the default says nothing; a misspelt value, or "auto" mounting (which needs gravity),
+    is a clear error."""
+    t = np.arange(200) / 100.0
+    src = _csv(tmp_path, pd.DataFrame({"t": t, "a0": 0.1 + 0 * t, "a1": 0.2 + 0 * t,
+                                       "g2": 0.01 + 0 * t}))
+    chans = {"ax": {"source": "a0", "unit": "m/s^2"}, "ay": {"source": "a1", "unit": "m/s^2"},
+             "yaw_rate": {"source": "g2", "unit": "rad/s"}}
+    ins = parse_channel_map(_map(chans, imu={"acceleration": "gravity_free"}))
+    df, _ = apply_channel_map(src, ins)
+    assert df.attrs["accelerometer"] == "gravity_free"
+    df, _ = apply_channel_map(src, parse_channel_map(_map(chans)))
+    assert "accelerometer" not in df.attrs
+    with pytest.raises(ChannelMapError, match=r"\[imu\] acceleration = 'ins'"):
+        parse_channel_map(_map(chans, imu={"acceleration": "ins"}))
+    with pytest.raises(ChannelMapError, match=r"mounting \"auto\" finds pitch and roll"):
+        parse_channel_map(_map(chans, imu={"acceleration": "gravity_free", "mounting": "auto"}))
+
+
 # --- gaps and clock offsets -----------------------------------------------------------------------
 
 

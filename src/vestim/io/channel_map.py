@@ -389,12 +389,13 @@ class ChannelMap:
     travel: str | None = None
     pose: PoseSpec | None = None
     path: Path | None = None
+    acceleration: str = "specific_force"
 
 
 _TOP_KEYS = {"format", "source", "output", "imu", "pose", "channels"}
 _SOURCE_KEYS = {"kind", "time", "time_unit", "dbc", "offset"}
 _OUTPUT_KEYS = {"rate", "max_gap", "gaps"}
-_IMU_KEYS = {"frame", "mounting", "travel"}
+_IMU_KEYS = {"frame", "mounting", "travel", "acceleration"}
 _POSE_KEYS = {"velocity", "orientation", "velocity_unit", "frame", "offset"}
 _CHANNEL_KEYS = {"source", "sources", "unit", "expr", "resample", "offset"}
 _IMU_CHANNELS = ("ax", "ay", "az", "roll_rate", "pitch_rate", "yaw_rate")
@@ -493,6 +494,11 @@ def parse_channel_map(data: Mapping[str, Any], *, base: Path = Path("."),
     travel = imu.get("travel")
     if travel is not None and travel not in ("pose", "wheels"):
         raise ChannelMapError(f"[imu] travel = {travel!r}: use \"pose\" or \"wheels\"")
+    acceleration = imu.get("acceleration", "specific_force")
+    if acceleration not in ("specific_force", "gravity_free"):
+        raise ChannelMapError(f"[imu] acceleration = {acceleration!r}: use \"specific_force\" "
+                              "(a body-fixed accelerometer) or \"gravity_free\" (an INS's "
+                              "levelled accelerations without gravity)")
 
     pose = None
     if "pose" in top:
@@ -525,10 +531,15 @@ def parse_channel_map(data: Mapping[str, Any], *, base: Path = Path("."),
                 )
     if mounting.auto and not any(c in channels for c in ("ax", "ay", "az")):
         raise ChannelMapError("[imu] mounting \"auto\" needs the accelerometer (ax, ay, az)")
+    if mounting.auto and acceleration == "gravity_free":
+        raise ChannelMapError("[imu] mounting \"auto\" finds pitch and roll from gravity, "
+                              "which gravity_free accelerations do not hold: give the mounting "
+                              "angles")
     return ChannelMap(
         channels=channels, rate=rate, max_gap=max_gap, gaps=str(gaps), kind=kind, time=time,
         time_unit=time_unit, dbc=dbc, offset=_number(src.get("offset", 0.0), "[source] offset"),
         frame=frame, mounting=mounting, travel=travel, pose=pose, path=path,
+        acceleration=str(acceleration),
     )
 
 
@@ -781,6 +792,8 @@ def apply_channel_map(src: Path, cmap: ChannelMap) -> tuple[pd.DataFrame, Import
     df = df[ch.canonical_order(df.columns)]
     validate_log(df, source=f"{src} (imported through {cmap.path or 'the channel map'})")
     df.attrs.update(report.metadata())
+    if cmap.acceleration != "specific_force":  # what the estimators must know of ax, ay, az
+        df.attrs["accelerometer"] = cmap.acceleration
     return df, report
 
 

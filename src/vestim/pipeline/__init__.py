@@ -52,6 +52,7 @@ from vestim.errors import LogFormatError
 from vestim.estimators import registry
 from vestim.estimators.force import ForceEstimator
 from vestim.estimators.force.estimator import (
+    ACCELEROMETERS,
     WHEEL_OUTPUTS,
     ColumnGroup,
     Inputs,
@@ -661,6 +662,14 @@ class Pipeline:
         try:
             for log in pieces:
                 check_structure(log, source="Pipeline.run input", first_row=done)
+                if done == 0:  # the log's own declaration, else the configuration's
+                    kind = str(log.attrs.get("accelerometer",
+                                             self.config.force_params.accelerometer))
+                    if kind not in ACCELEROMETERS:
+                        raise LogFormatError(
+                            f"log metadata accelerometer = {kind!r}: use one of "
+                            f"{', '.join(ACCELEROMETERS)} (what ax, ay, az hold)")
+                    self.force.set_accelerometer(kind)
                 log = corrected_log(log, self.vehicle.calibration, wheel_radius=b.wheel_radius,
                                     steering_ratio=b.steering_ratio)
                 u = inputs_from_log(log, self.vehicle)

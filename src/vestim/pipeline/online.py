@@ -132,7 +132,7 @@ def step_kernel(s: np.ndarray, out: np.ndarray, fprm: np.ndarray,
     attitude_kernel(t1, s[S_AX:S_AX + 1], s[S_AY:S_AY + 1], s[S_P:S_P + 1], s[S_Q:S_Q + 1],
                     r1, omega, att_prm, att, roll, pitch, roll_acc, pitch_acc)
     fxa, fya, fza = road_specific_force(s[S_AX:S_AX + 1], s[S_AY:S_AY + 1], s[S_AZ:S_AZ + 1],
-                                        roll, pitch)
+                                        att_prm.gravity * roll, att_prm.gravity * pitch)
     f_x, f_y = fxa[0], fya[0]
     fz = normal_loads_kernel(fxa, fya, fza, roll, pitch, s[S_P:S_P + 1], s[S_Q:S_Q + 1],
                              roll_acc, pitch_acc, nl_prm, dynamic)

@@ -70,6 +70,8 @@ from vestim.models.kinematics import level_road_az, road_specific_force
 from vestim.params import check_ranges
 
 TORQUES: tuple[str, ...] = tuple(f"torque_{c}" for c in CORNERS)
+ACCELEROMETERS: tuple[str, ...] = ("specific_force", "gravity_free")
+"""What a log's ``ax``, ``ay``, ``az`` may hold (:attr:`ForceConfig.accelerometer`)."""
 OMEGAS: tuple[str, ...] = tuple(f"omega_{c}" for c in CORNERS)
 SPEEDS: tuple[str, ...] = ("vehicle_speed", "gnss_speed")
 """Speed channels that stand in for the wheel speeds (dense first: preferred)."""
@@ -120,6 +122,12 @@ class ForceConfig:
         roll_id_tau: forgetting time of that identification, s.
         roll_id_noise: one-sigma of the sideslip acceleration v̇_y/g that the identification
             treats as noise, rad, with a correlation time of 0.5 s.
+        accelerometer: what ``ax``, ``ay``, ``az`` hold: "specific_force" (the format's
+            body-fixed specific force, gravity through roll and pitch included) or
+            "gravity_free" (an INS's levelled kinematic accelerations: the attitude's
+            gravity is not removed). A log declares it in its metadata (``accelerometer``,
+            or a channel map's ``[imu] acceleration``), which :meth:`Pipeline.run
+            <vestim.pipeline.Pipeline.run>` follows.
     """
 
     longitudinal: str = "ukf"
@@ -138,8 +146,12 @@ class ForceConfig:
     roll_gradient_sd: float = 0.0089
     roll_id_tau: float = 120.0
     roll_id_noise: float = 0.1
+    accelerometer: str = "specific_force"
 
     def __post_init__(self) -> None:
+        if self.accelerometer not in ACCELEROMETERS:
+            raise ValueError(f"force_params accelerometer = {self.accelerometer!r}: use one of "
+                             f"{', '.join(ACCELEROMETERS)}")
         if self.longitudinal not in lon.METHODS:
             raise ValueError(f"longitudinal force method {self.longitudinal!r}: use one of "
                              f"{', '.join(lon.METHODS)}")
@@ -486,6 +498,7 @@ class ForceEstimator:
         self._att_prm = nrm.attitude_params(self.config, self._c_roll, self._c_pitch,
                                             b.wheel_radius, b.drivetrain,
                                             "suspension" in vehicle.given, roll_known)
+        self.set_accelerometer(self.config.accelerometer)
         self._xw = np.array([b.lf, b.lf, -b.lr, -b.lr])
         self._yw = 0.5 * np.array([b.track_f, -b.track_f, b.track_r, -b.track_r])
         self._w4, self._c4, self._tau4 = ukf_weights(4)
@@ -535,6 +548,14 @@ class ForceEstimator:
         for key, value in sources.items():
             self._seen.setdefault(key, set()).add(value)
 
+    def set_accelerometer(self, kind: str) -> None:
+        """Take ``ax``, ``ay``, ``az`` as ``kind`` ("specific_force" | "gravity_free", see
+        :class:`ForceConfig`) from the next sample on."""
+        if kind not in ACCELEROMETERS:
+            raise ValueError(f"accelerometer {kind!r}: use one of {', '.join(ACCELEROMETERS)}")
+        self._att_prm = self._att_prm._replace(gravity=0.0 if kind == "gravity_free" else 1.0)
+        self.accelerometer = kind
+
     @property
     def roll_assumption(self) -> dict[str, str]:
         """The roll gradient used without a roll rate, for output metadata:
@@ -576,8 +597,10 @@ class ForceEstimator:
         roll, pitch, roll_acc, pitch_acc = np.empty((4, n))
         nrm.attitude_kernel(u.t, u.ax, u.ay, u.roll_rate, u.pitch_rate, u.yaw_rate, u.omega,
                             self._att_prm, self._att, roll, pitch, roll_acc, pitch_acc)
-        az = u.az if u.az_measured else level_road_az(u.ax, u.ay, roll, pitch)
-        f_x, f_y, f_z = road_specific_force(u.ax, u.ay, az, roll, pitch)
+        # The attitude's gravity as the accelerometers read it (none in an INS's output).
+        g_roll, g_pitch = self._att_prm.gravity * roll, self._att_prm.gravity * pitch
+        az = u.az if u.az_measured else level_road_az(u.ax, u.ay, g_roll, g_pitch)
+        f_x, f_y, f_z = road_specific_force(u.ax, u.ay, az, g_roll, g_pitch)
         if not u.ax_measured:
             # A speed's derivative is already the road-plane acceleration: rotating it by the
             # pitch would add a g sin θ that a body-fixed accelerometer reads and it does not

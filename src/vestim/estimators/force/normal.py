@@ -70,6 +70,7 @@ class AttitudeKernelParams(NamedTuple):
     roll_gradient_sd: float  # σ_k, rad per m/s²
     roll_id_tau: float  # forgetting time, s
     roll_id_noise: float  # σ_e, rad
+    gravity: float  # 1: the accelerometers read the attitude's gravity, 0: gravity-free (INS)
 
 
 N_ATTITUDE = 14
@@ -96,7 +97,8 @@ def attitude_params(config: Any, c_roll: float, c_pitch: float, radius: float,
     return pack(AttitudeKernelParams, config, c_roll=c_roll, c_pitch=c_pitch, radius=radius,
                 undriven_axle={"fwd": 1, "rwd": 0}.get(drivetrain, -1),
                 roll_gain=config.roll_gain if suspension_given else 0.0,
-                roll_identify=not roll_known)
+                roll_identify=not roll_known,
+                gravity=0.0 if config.accelerometer == "gravity_free" else 1.0)
 
 
 @njit(**_JIT)
