@@ -238,3 +238,15 @@ def test_estimate_metadata_states_the_roll_gradient_and_warns_of_unverified_vy(t
     warned = [w for w in json.loads(read_log(est).attrs["warnings"])
               if w["check"] == "lateral_consistency"]
     assert len(warned) == 1 and warned[0]["evidence"] == pytest.approx(0.30, abs=0.03)
+
+
+def test_simulate_realistic_sensors_and_a_softer_plant(tmp_path):
+    """`simulate --sensors realistic --roll-scale 1.6` (issue 29: the default sensors and a
+    plant that rolls as the file says hid the lateral filter's drift); a wrong mode is named."""
+    out = tmp_path / "r.parquet"
+    res = runner.invoke(app, ["simulate", "lc_wet", "--sensors", "realistic", "--roll-scale",
+                              "1.6", "--out", str(out)])
+    assert res.exit_code == 0, res.output
+    assert read_log(out).attrs["roll_scale"] == "1.6"
+    bad = runner.invoke(app, ["simulate", "lc_wet", "--sensors", "noisy", "--out", str(out)])
+    assert bad.exit_code == 2 and "--sensors 'noisy': use default or realistic" in bad.output

@@ -119,16 +119,20 @@ def _fail(exc: Exception) -> typer.Exit:
     return typer.Exit(code=2)
 
 
-def _run(m: Maneuver, vehicle: str, seed: int, rate: float, label: str):  # type: ignore[no-untyped-def]
+def _run(m: Maneuver, vehicle: str, seed: int, rate: float, label: str,  # type: ignore[no-untyped-def]
+         sensors: str = "default", roll_scale: float = 1.0):
     """Simulate with a progress bar on the terminal (hidden when not interactive)."""
     from vestim.io import load_vehicle
     from vestim.sim import SensorModel, simulate
 
+    if sensors not in ("default", "realistic"):
+        raise ValueError(f"--sensors {sensors!r}: use default or realistic")
     veh = load_vehicle(vehicle)
+    model = SensorModel.realistic(rate) if sensors == "realistic" else SensorModel(rate=rate)
     with Progress(TextColumn("{task.description}"), BarColumn(), TimeElapsedColumn(),
                   console=console, transient=True, disable=not console.is_terminal) as bar:
         task = bar.add_task(label, total=1.0)
-        log = simulate(m, veh, seed=seed, sensors=SensorModel(rate=rate),
+        log = simulate(m, veh, seed=seed, sensors=model, roll_scale=roll_scale,
                        progress=lambda f: bar.update(task, completed=f))
     return veh, log
 
@@ -196,6 +200,10 @@ def simulate_cmd(
     vehicle: VehicleOpt = "hashemi_suv",
     seed: Annotated[int, typer.Option(help="Sensor-noise seed.")] = 0,
     rate: Annotated[float, typer.Option(help="Sensor sampling rate, Hz.")] = 200.0,
+    sensors: Annotated[str, typer.Option(help="default | realistic (vibration, 4× noise, "
+                                         "quantised gyros and wheel speeds).")] = "default",
+    roll_scale: Annotated[float, typer.Option(help="The plant rolls this many times as much "
+                                              "as the vehicle file says.")] = 1.0,
 ) -> None:
     """Simulate a maneuver and write a spec log with every measured and ref_ channel."""
     from vestim.io import write_log
@@ -206,7 +214,7 @@ def simulate_cmd(
         check_output_path(out, suffixes=LOG_SUFFIXES)
         m = get_maneuver(name, mu=mu, v0=v0, drivetrain=drivetrain, tire=tire, tc=tc, abs_=abs_)
         t0 = time.perf_counter()
-        _, log = _run(m, vehicle, seed, rate, f"simulating {name}")
+        _, log = _run(m, vehicle, seed, rate, f"simulating {name}", sensors, roll_scale)
         path = write_log(log, out, metadata=log.attrs)
     except (VestimError, ValueError, OSError, FloatingPointError) as exc:
         raise _fail(exc) from None

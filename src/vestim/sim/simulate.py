@@ -100,6 +100,7 @@ def simulate(
     sim_rate: float = SIM_RATE,
     extras: bool = False,
     progress: Callable[[float], None] | None = None,
+    roll_scale: float = 1.0,
 ) -> pd.DataFrame:
     """Simulate a maneuver and return a log in the spec's format.
 
@@ -111,6 +112,10 @@ def simulate(
         sim_rate: integration rate in Hz; must be an integer multiple of the sensor rate.
         extras: also return the trajectory and road channels of :data:`EXTRA_COLUMNS`.
         progress: called with the completed fraction in [0, 1] after each chunk.
+        roll_scale: the plant's roll stiffness and damping are the vehicle's divided by this
+            (its roll gradient × ``roll_scale``), while the log is estimated with the vehicle
+            file as it is: a plant that does not roll as the estimator's file says (a real
+            car's), which the default (1) hides.
 
     Returns:
         DataFrame with ``t``, every measured channel (noisy), ``steering_wheel_angle``,
@@ -137,7 +142,11 @@ def simulate(
     brake = np.clip(np.asarray(m.brake(t), dtype=float), 0.0, 1.0)
     v_target = np.asarray(m.speed(t), dtype=float)
 
+    if not (math.isfinite(roll_scale) and roll_scale > 0):
+        raise ValueError(f"roll_scale = {roll_scale} must be > 0")
     p = plant_parameters(veh, m)
+    p[P.P_KPHI] /= roll_scale
+    p[P.P_CPHI] /= roll_scale
     xw = np.array([body.lf, body.lf, -body.lr, -body.lr])
     yw = np.array([body.track_f, -body.track_f, body.track_r, -body.track_r]) * 0.5
     theta_mu, theta_val = _theta_table(veh, m)
@@ -169,5 +178,6 @@ def simulate(
         "maneuver": m.name, "description": m.description, "vehicle": veh.name, "tire": m.tire,
         "drivetrain": m.drivetrain or body.drivetrain, "tc": str(m.tc), "abs": str(m.abs_),
         "seed": str(seed), "sensor_rate": str(sensors.rate), "sim_rate": str(sim_rate),
+        "roll_scale": str(roll_scale),
     })
     return log
