@@ -223,3 +223,32 @@ def test_declared_gravity_free_accelerations_are_taken_as_such() -> None:
     log.attrs["accelerometer"] = "ins"
     with pytest.raises(LogFormatError, match="accelerometer = 'ins'"):
         Pipeline(vehicle).run(log)
+
+
+XP = SHARED / "crossplant" / "data"
+
+
+@pytest.mark.skipif(not XP.exists(), reason=f"crossplant logs not found at {XP}")
+@pytest.mark.parametrize(("log", "vehicle", "beta_max"), [
+    ("x05_sine_steer_dry_rwd", "vehicle2", 0.178),  # β = 0 gives 0.178°
+    ("x09_accel_turn_mu_drop_rwd", "vehicle2", 0.464),
+    ("x10_mixed_drive_fwd", "vehicle1", 1.648),
+])
+@pytest.mark.parametrize("lr_factor", [0.7, 1.3])
+def test_a_vehicle_file_with_lr_off_by_30_percent_stays_within_zero_sideslip(
+        log: str, vehicle: str, beta_max: float, lr_factor: float) -> None:
+    """The issue's case of a file whose l_r is off by 30 % (wheelbase kept): β stays below the
+    β = 0 floor on the crossplant's sine steer, μ-drop turn and mixed drive. Measured
+    (×0.7 / ×1.3, against 0.059, 0.143, 0.174 with the right file): x05 0.067 / 0.143,
+    x09 0.315 / 0.319, x10 0.640 / 0.446 degrees."""
+    from dataclasses import replace
+
+    truth = pd.read_parquet(XP / f"{log}.parquet")
+    veh = load_vehicle(XP / f"{vehicle}.toml")
+    wheelbase = veh.body.lf + veh.body.lr
+    lr = veh.body.lr * lr_factor
+    wrong = replace(veh, body=replace(veh.body, lr=lr, lf=wheelbase - lr))
+    est = Pipeline(wrong).run(_measured(truth))
+    floor = _beta_rmse(truth, est.assign(vy=0.0))
+    assert floor == pytest.approx(beta_max, abs=0.005)
+    assert _beta_rmse(truth, est) < floor
