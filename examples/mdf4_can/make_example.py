@@ -25,7 +25,7 @@ import pandas as pd
 
 from vestim.io.writers import write_mdf_can
 
-CROSSPLANT = Path("/work/shared/crossplant/data")
+CROSSPLANT = Path(__file__).resolve().parents[2].parent / "shared" / "crossplant" / "data"
 DEFAULT_LOG = CROSSPLANT / "x05_sine_steer_dry_rwd.parquet"
 
 

@@ -21,7 +21,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-CROSSPLANT = Path("/work/shared/crossplant/data")
+CROSSPLANT = Path(__file__).resolve().parents[2].parent / "shared" / "crossplant" / "data"
 DEFAULT_LOG = CROSSPLANT / "x05_sine_steer_dry_rwd.parquet"
 DEFAULT_RADIUS = 0.344
 """m; vehicle2.toml's wheel_radius, the radius the map's wheel-speed expression divides by."""

@@ -33,7 +33,7 @@ import pandas as pd
 
 from vestim.io.writers import write_ros2_bag
 
-CROSSPLANT = Path("/work/shared/crossplant/data")
+CROSSPLANT = Path(__file__).resolve().parents[2].parent / "shared" / "crossplant" / "data"
 DEFAULT_LOG = CROSSPLANT / "x05_sine_steer_dry_rwd.parquet"
 
 

@@ -17,12 +17,12 @@ poisoning them). Truth, computed here only:
 from __future__ import annotations
 
 import json
-from pathlib import Path
 
 import numpy as np
 import pandas as pd
 import pytest
 
+from tests._paths import CROSSPLANT_DATA
 from vestim.constants import G
 from vestim.design.calibrate.body_tire import identify_body, identify_tires
 from vestim.errors import LogFormatError
@@ -31,7 +31,7 @@ from vestim.io import load_vehicle
 from vestim.io.vehicle import Vehicle
 from vestim.sim import simulate
 
-DATA = Path("/work/shared/crossplant/data")
+DATA = CROSSPLANT_DATA
 P_KY1 = 21.92  # |p_ky1| of commonroad-vehicle-models 3.0.2 parameters_vehicle1/2/3
 P_KX = 22.29  # C_x/F_z of the same tire at κ = 0 (x11/x12 ref_stiffness_cx over ΣF_z, checked)
 needs_data = pytest.mark.skipif(not (DATA / "manifest.json").exists(),

@@ -19,14 +19,16 @@ import numpy as np
 import pandas as pd
 import pytest
 
+from tests._paths import CROSSPLANT_DATA
+from tests._paths import RAV4 as RAV4_DIR
 from vestim.design.calibrate.sensors import identify_imu, identify_steering, identify_wheels
 from vestim.io import load_vehicle
 from vestim.io.channel_map import apply_channel_map, parse_channel_map
 from vestim.sim import simulate
 from vestim.sim.sensors import SensorModel
 
-CROSS = Path("/work/shared/crossplant/data")
-RAV4 = Path("/work/shared/real/comma2k19_rav4")
+CROSS = CROSSPLANT_DATA
+RAV4 = RAV4_DIR
 COMMA_MAP = Path(__file__).resolve().parents[2] / "examples" / "comma2k19" / "map.toml"
 needs_cross = pytest.mark.skipif(not CROSS.is_dir(), reason="crossplant data not present")
 needs_rav4 = pytest.mark.skipif(not (RAV4 / "seg40.parquet").is_file(),

@@ -17,6 +17,8 @@ from hypothesis import assume, given, settings
 from hypothesis import strategies as st
 from typer.testing import CliRunner
 
+from tests._paths import CROSSPLANT_DATA
+from tests._paths import RAV4 as RAV4_DIR
 from vestim.cli import app
 from vestim.io import load_vehicle, read_log
 from vestim.io.channel_map import (
@@ -35,8 +37,8 @@ from vestim.io.readers import Stream
 from vestim.pipeline import Pipeline, PipelineConfig
 
 ROOT = Path(__file__).resolve().parents[2]
-RAV4 = Path("/work/shared/real/comma2k19_rav4")
-CROSSPLANT = Path("/work/shared/crossplant/data")
+RAV4 = RAV4_DIR
+CROSSPLANT = CROSSPLANT_DATA
 needs_rav4 = pytest.mark.skipif(not (RAV4 / "raw").is_dir(), reason="comma2k19 copy not present")
 needs_crossplant = pytest.mark.skipif(not CROSSPLANT.is_dir(), reason="crossplant not present")
 COMMA_MAP = ROOT / "examples/comma2k19/map.toml"

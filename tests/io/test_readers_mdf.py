@@ -18,6 +18,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
+from tests._paths import CROSSPLANT_DATA
 from vestim.errors import LogFormatError, VestimError
 from vestim.io.readers import mdf
 from vestim.io.writers import CAN_SIGNALS, VEHICLE_DBC, can_database, can_frames, encode_signal, write_mdf_can
@@ -25,7 +26,7 @@ from vestim.io.writers import CAN_SIGNALS, VEHICLE_DBC, can_database, can_frames
 asammdf = pytest.importorskip("asammdf")
 cantools = pytest.importorskip("cantools")
 
-CROSSPLANT = Path("/work/shared/crossplant/data")
+CROSSPLANT = CROSSPLANT_DATA
 X05 = CROSSPLANT / "x05_sine_steer_dry_rwd.parquet"
 EXAMPLE = Path(__file__).resolve().parents[2] / "examples" / "mdf4_can"
 needs_crossplant = pytest.mark.skipif(not X05.exists(), reason="crossplant logs not available")

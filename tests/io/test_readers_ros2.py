@@ -16,13 +16,14 @@ import numpy as np
 import pandas as pd
 import pytest
 
+from tests._paths import CROSSPLANT_DATA
 from vestim.errors import LogFormatError
 from vestim.io.readers import ros2
 from vestim.io.writers import ROS2_FIELDS, ROS2_START_TIME_NS, ros2_typestore, write_ros2_bag
 
 rosbags = pytest.importorskip("rosbags")
 
-CROSSPLANT = Path("/work/shared/crossplant/data")
+CROSSPLANT = CROSSPLANT_DATA
 X05 = CROSSPLANT / "x05_sine_steer_dry_rwd.parquet"
 EXAMPLE = Path(__file__).resolve().parents[2] / "examples" / "ros2_bag"
 EPOCH = ROS2_START_TIME_NS * 1e-9

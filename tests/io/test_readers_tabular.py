@@ -8,13 +8,15 @@ import numpy as np
 import pandas as pd
 import pytest
 
+from tests._paths import CROSSPLANT_DATA
+from tests._paths import RAV4 as RAV4_DIR
 from vestim.errors import LogFormatError
 from vestim.io.readers import read_source, source_kind
 from vestim.io.readers import tabular as tab
 from vestim.io.readers.numpy_dir import parse_address
 from vestim.io.readers.numpy_dir import read_streams as read_numpy
 
-RAW = Path("/work/shared/real/comma2k19_rav4/raw")
+RAW = RAV4_DIR / "raw"
 needs_rav4 = pytest.mark.skipif(not RAW.is_dir(), reason="comma2k19 raw copy not present")
 
 
@@ -126,7 +128,7 @@ def test_numpy_folder_length_mismatch(tmp_path):
         read_numpy(tmp_path, ["S"])
 
 
-CROSSPLANT_X05 = Path("/work/shared/crossplant/data/x05_sine_steer_dry_rwd.parquet")
+CROSSPLANT_X05 = CROSSPLANT_DATA / "x05_sine_steer_dry_rwd.parquet"
 
 
 @pytest.mark.skipif(not CROSSPLANT_X05.is_file(), reason="crossplant not present")
