@@ -371,7 +371,8 @@ class Pipeline:
                 var = np.column_stack((var, np.full(n, p_ref.sigma_vehicle_speed**2)))
             vel = self.reference.advance(u.t, np.full_like(u.omega, np.nan), u.torque, mu_x_c,
                                          axle_slip, res["f_x"], res["f_y"], u.yaw_rate,
-                                         u.delta, extra, var, fx_from_speed=not u.ax_measured)
+                                         u.delta, extra, var, fx_from_speed=not u.ax_measured,
+                                         fy_sd=res["fy_sd"])
             v, sig, bias, unverified = (vel["v"], vel["sigma"], vel["bias"][:, 0],
                                           vel["bias"][:, 3])
         elif method == "kinematic":
@@ -389,7 +390,8 @@ class Pipeline:
             start = self.reference.snapshot() if self._fused_is_reference else ()
             ref = self.reference.advance(u.t, u.omega, u.torque, mu_x_c, axle_slip, res["f_x"],
                                          res["f_y"], u.yaw_rate, u.delta, extra, var,
-                                         fx_from_speed=not u.ax_measured)
+                                         fx_from_speed=not u.ax_measured,
+                                         fy_sd=res["fy_sd"])
             out = self._corners(u, res, mu_x_c, ref)
             vx_corner = self._fuse_corners(out, u, res, ref["v"])
             p = self.config.reference
@@ -407,13 +409,15 @@ class Pipeline:
                                                       np.nan)))
                 vel = self.fused.advance(u.t, u.omega, u.torque, mu_x_c, axle_slip, res["f_x"],
                                          res["f_y"], u.yaw_rate, u.delta, extra2, var2,
-                                         fx_from_speed=not u.ax_measured)
+                                         fx_from_speed=not u.ax_measured,
+                                         fy_sd=res["fy_sd"])
             v, sig, bias, unverified = (vel["v"], vel["sigma"], vel["bias"][:, 0],
                                           vel["bias"][:, 3])
         else:
             vel = self.reference.advance(u.t, u.omega, u.torque, mu_x_c, axle_slip, res["f_x"],
                                          res["f_y"], u.yaw_rate, u.delta, extra, var,
-                                         fx_from_speed=not u.ax_measured)
+                                         fx_from_speed=not u.ax_measured,
+                                         fy_sd=res["fy_sd"])
             v, sig, bias, unverified = (vel["v"], vel["sigma"], vel["bias"][:, 0],
                                           vel["bias"][:, 3])
             if self.corner is not None:

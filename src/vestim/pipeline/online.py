@@ -129,8 +129,9 @@ def step_kernel(s: np.ndarray, out: np.ndarray, fprm: np.ndarray,
     pitch = np.empty(1)
     roll_acc = np.empty(1)
     pitch_acc = np.empty(1)
+    fy_sd = np.empty(1)
     attitude_kernel(t1, s[S_AX:S_AX + 1], s[S_AY:S_AY + 1], s[S_P:S_P + 1], s[S_Q:S_Q + 1],
-                    r1, omega, att_prm, att, roll, pitch, roll_acc, pitch_acc)
+                    r1, omega, att_prm, att, roll, pitch, roll_acc, pitch_acc, fy_sd)
     fxa, fya, fza = road_specific_force(s[S_AX:S_AX + 1], s[S_AY:S_AY + 1], s[S_AZ:S_AZ + 1],
                                         att_prm.gravity * roll, att_prm.gravity * pitch)
     f_x, f_y = fxa[0], fya[0]
@@ -169,7 +170,7 @@ def step_kernel(s: np.ndarray, out: np.ndarray, fprm: np.ndarray,
         # While it is the plain filter the fused filter's state is not used: it holds the
         # plain filter's state before this sample, the start of its first own step.
         copy_reference_state(fus_st, ref_st)
-    reference_step(ref_prm, ref_st, 0, t1, omega, torque, mu_x, axle, fxa, fya, r1, delta,
+    reference_step(ref_prm, ref_st, 0, t1, omega, torque, mu_x, axle, fxa, fya, fy_sd, r1, delta,
                    none_v, none_v, v_ref, sig_ref, bias_ref, trust)
     v = v_ref
     sig = sig_ref
@@ -243,7 +244,7 @@ def step_kernel(s: np.ndarray, out: np.ndarray, fprm: np.ndarray,
             v = np.empty((1, 2))
             sig = np.empty((1, 2))
             bias = np.empty((1, 4))
-            reference_step(ref_prm, fus_st, 0, t1, omega, torque, mu_x, axle, fxa, fya, r1,
+            reference_step(ref_prm, fus_st, 0, t1, omega, torque, mu_x, axle, fxa, fya, fy_sd, r1,
                            delta, extra, var, v, sig, bias, trust)
     # --- outputs (Pipeline._groups order) ---
     vx_o, vy_o = transport_kernel(v[0, 0:1].copy(), v[0, 1:2].copy(), r1, xw, yw, 1.0)

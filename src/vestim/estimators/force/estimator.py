@@ -594,9 +594,9 @@ class ForceEstimator:
         self.note_sources(u.sources)
         if not (u.ax_measured and u.omega_measured):
             self._speed_inputs(u)
-        roll, pitch, roll_acc, pitch_acc = np.empty((4, n))
+        roll, pitch, roll_acc, pitch_acc, fy_sd = np.empty((5, n))
         nrm.attitude_kernel(u.t, u.ax, u.ay, u.roll_rate, u.pitch_rate, u.yaw_rate, u.omega,
-                            self._att_prm, self._att, roll, pitch, roll_acc, pitch_acc)
+                            self._att_prm, self._att, roll, pitch, roll_acc, pitch_acc, fy_sd)
         # The attitude's gravity as the accelerometers read it (none in an INS's output).
         g_roll, g_pitch = self._att_prm.gravity * roll, self._att_prm.gravity * pitch
         az = u.az if u.az_measured else level_road_az(u.ax, u.ay, g_roll, g_pitch)
@@ -645,6 +645,7 @@ class ForceEstimator:
             sig_fx = np.full_like(sig_fx, np.nan)
         return {"fx": fx, "sigma_fx": sig_fx, "fy": fy, "sigma_fy": sig_fy, "fz": fz,
                 "roll": roll, "pitch": pitch, "f_x": f_x, "f_y": f_y, "f_z": f_z,
+                "fy_sd": fy_sd,
                 "torque": u.torque, "wheel_speeds": np.array(u.omega_measured)}
 
     def _speed_inputs(self, u: Inputs) -> None:

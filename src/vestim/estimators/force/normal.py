@@ -150,12 +150,28 @@ def roll_gradient_solve(prm: AttitudeKernelParams, state: np.ndarray) -> float:
 
 
 @njit(**_JIT)
+def roll_gradient_sd(prm: AttitudeKernelParams, state: np.ndarray) -> float:
+    """The one-sigma of :func:`roll_gradient_solve`'s k (rad per m/s²): the inverse of the
+    regression's information, prior included (``roll_gradient_sd`` before any sample)."""
+    pk = 1.0 / (prm.roll_gradient_sd * prm.roll_gradient_sd)
+    pb = 1.0 / (ROLL_BIAS_SD * ROLL_BIAS_SD)
+    m11 = state[9] + pk
+    m12 = state[10]
+    m22 = state[11] + pb
+    return float(np.sqrt(m22 / (m11 * m22 - m12 * m12)))
+
+
+@njit(**_JIT)
 def attitude_kernel(t: np.ndarray, ax: np.ndarray, ay: np.ndarray, p: np.ndarray,
                     q: np.ndarray, r: np.ndarray, omega: np.ndarray, prm: AttitudeKernelParams,
                     state: np.ndarray, roll: np.ndarray, pitch: np.ndarray,
-                    roll_acc: np.ndarray, pitch_acc: np.ndarray) -> None:
+                    roll_acc: np.ndarray, pitch_acc: np.ndarray, fy_sd: np.ndarray) -> None:
     """Attitude filter over a chunk, in place on ``state`` = [φ̂, θ̂, t_prev, started,
     p̄, ṗ̄, q̄, q̇̄, b̂_p, and the roll-gradient regression's five sums] (:data:`N_ATTITUDE`).
+
+    ``fy_sd`` (n,): the relative one-sigma that the roll leaves in the road-plane f_y, g σ_k
+    where the roll gradient k is identified (no roll rate, no stated suspension; σ_k from
+    :func:`roll_gradient_sd`), 0 elsewhere: the velocity filter's process noise takes it.
 
     ``prm``: :class:`AttitudeKernelParams` (τ_φ, L_θ, c_roll, c_pitch, R, f_acc, the undriven
     axle, e_φ, L_φ, τ_b).
@@ -262,6 +278,8 @@ def attitude_kernel(t: np.ndarray, ax: np.ndarray, ay: np.ndarray, p: np.ndarray
         pitch[k] = state[1]
         roll_acc[k] = state[5]
         pitch_acc[k] = state[7]
+        fy_sd[k] = G * roll_gradient_sd(prm, state) if (np.isnan(p[k])
+                                                        and prm.roll_identify) else 0.0
 
 
 class NormalLoadKernelParams(NamedTuple):

@@ -804,9 +804,9 @@ def copy_reference_state(dst: ReferenceState, src: ReferenceState) -> None:
 def _reference_rows(prm: ReferenceKernelParams, st: ReferenceState, start: int, stop: int,
                     t: np.ndarray, omega: np.ndarray, torque: np.ndarray, mu_x: np.ndarray,
                     axle_slip: np.ndarray, f_x: np.ndarray, f_y: np.ndarray,
-                    yaw_rate: np.ndarray, delta: np.ndarray, extra_v: np.ndarray,
-                    extra_var: np.ndarray, out_v: np.ndarray, out_sig: np.ndarray,
-                    out_bias: np.ndarray, out_trust: np.ndarray) -> None:
+                    fy_sd: np.ndarray, yaw_rate: np.ndarray, delta: np.ndarray,
+                    extra_v: np.ndarray, extra_var: np.ndarray, out_v: np.ndarray,
+                    out_sig: np.ndarray, out_bias: np.ndarray, out_trust: np.ndarray) -> None:
     """Rows [start, stop) of :func:`reference_kernel`: the per-sample body of
     :func:`reference_step` and the loop of the batch kernel in one function. The arrays of
     ``st`` and ``prm`` are taken once per call: a NamedTuple's array field is a new
@@ -898,7 +898,7 @@ def _reference_rows(prm: ReferenceKernelParams, st: ReferenceState, start: int, 
             d_fy = f_y[k] - fyp
             if dt > 0:
                 fy_var[0] += min(dt / prm.fy_noise_tau, 1.0) * (0.5 * d_fy * d_fy - fy_var[0])
-            s_fy = prm.fy_scale_sd * fyp
+            s_fy = np.hypot(prm.fy_scale_sd, fy_sd[k]) * fyp
             P[VY, VY] += (prm.q_vy + fy_var[0] * dt + 2.0 * prm.tau_fy * s_fy * s_fy) * dt
             P[BX, BX] += prm.q_bias * dt
             P[BY, BY] += prm.q_bias_y * dt
@@ -1082,22 +1082,22 @@ def _reference_rows(prm: ReferenceKernelParams, st: ReferenceState, start: int, 
 def reference_step(prm: ReferenceKernelParams, st: ReferenceState, k: int, t: np.ndarray,
                    omega: np.ndarray, torque: np.ndarray, mu_x: np.ndarray,
                    axle_slip: np.ndarray, f_x: np.ndarray, f_y: np.ndarray,
-                   yaw_rate: np.ndarray, delta: np.ndarray, extra_v: np.ndarray,
-                   extra_var: np.ndarray, out_v: np.ndarray, out_sig: np.ndarray,
-                   out_bias: np.ndarray, out_trust: np.ndarray) -> None:
+                   fy_sd: np.ndarray, yaw_rate: np.ndarray, delta: np.ndarray,
+                   extra_v: np.ndarray, extra_var: np.ndarray, out_v: np.ndarray,
+                   out_sig: np.ndarray, out_bias: np.ndarray, out_trust: np.ndarray) -> None:
     """Sample ``k`` of :func:`reference_kernel` (row ``k`` of its inputs and outputs), in
     place on ``st``; allocates nothing (but the median of the recovery)."""
-    _reference_rows(prm, st, k, k + 1, t, omega, torque, mu_x, axle_slip, f_x, f_y, yaw_rate,
-                    delta, extra_v, extra_var, out_v, out_sig, out_bias, out_trust)
+    _reference_rows(prm, st, k, k + 1, t, omega, torque, mu_x, axle_slip, f_x, f_y, fy_sd,
+                    yaw_rate, delta, extra_v, extra_var, out_v, out_sig, out_bias, out_trust)
 
 
 @njit(**_JIT)
 def reference_kernel(prm: ReferenceKernelParams, st: ReferenceState, t: np.ndarray,
                      omega: np.ndarray, torque: np.ndarray, mu_x: np.ndarray,
                      axle_slip: np.ndarray, f_x: np.ndarray, f_y: np.ndarray,
-                     yaw_rate: np.ndarray, delta: np.ndarray, extra_v: np.ndarray,
-                     extra_var: np.ndarray, out_v: np.ndarray, out_sig: np.ndarray,
-                     out_bias: np.ndarray, out_trust: np.ndarray) -> None:
+                     fy_sd: np.ndarray, yaw_rate: np.ndarray, delta: np.ndarray,
+                     extra_v: np.ndarray, extra_var: np.ndarray, out_v: np.ndarray,
+                     out_sig: np.ndarray, out_bias: np.ndarray, out_trust: np.ndarray) -> None:
     """Advance the reference filter over a chunk, in place on ``st``: :func:`reference_step`
     for each sample (the same body, with the loop inside it, see :func:`_reference_rows`).
 
@@ -1105,14 +1105,17 @@ def reference_kernel(prm: ReferenceKernelParams, st: ReferenceState, t: np.ndarr
     t (s), ω (n, 4) rad/s (NaN: no wheel speed), wheel torques (n, 4) N m, μ_x (n, 4),
     ``axle_slip`` (n, 2): front and rear axle slip angles from the lateral forces and the
     nominal cornering stiffness, rad (spec sign: atan(v_yt/v_xt)), NaN where unknown; f_x,
-    f_y (m/s²) in the road plane, yaw rate (rad/s), δ (n, 4) rad; ``extra_v``/``extra_var``
+    f_y (m/s²) in the road plane, ``fy_sd`` (n,) the relative one-sigma of f_y that the
+    attitude leaves (an identified roll gradient's; 0 where measured), yaw rate (rad/s),
+    δ (n, 4) rad; ``extra_v``/``extra_var``
     (n, m2): extra CG-speed measurements (m/s) and variances ((m/s)²), NaN where absent.
     Outputs: out_v (n, 2) [v_x, v_y], out_sig (n, 2), out_bias (n, 4) [b_x, b_y, b_r, and the
     time since a v_y pseudo-measurement was last accepted, s], out_trust (n, 4) the standard
     deviation used per wheel (inf where rejected).
     """
     _reference_rows(prm, st, 0, t.shape[0], t, omega, torque, mu_x, axle_slip, f_x, f_y,
-                    yaw_rate, delta, extra_v, extra_var, out_v, out_sig, out_bias, out_trust)
+                    fy_sd, yaw_rate, delta, extra_v, extra_var, out_v, out_sig, out_bias,
+                    out_trust)
 
 
 class ReferenceFilter:
@@ -1159,7 +1162,8 @@ class ReferenceFilter:
                 delta: np.ndarray,
                 extra_v: np.ndarray | None = None,
                 extra_var: np.ndarray | None = None,
-                fx_from_speed: bool = False) -> dict[str, np.ndarray]:
+                fx_from_speed: bool = False,
+                fy_sd: np.ndarray | None = None) -> dict[str, np.ndarray]:
         """Process a chunk; returns v (n, 2) [v_x, v_y] m/s, sigma (n, 2), bias (n, 4) [b_x, b_y]
         m/s², b_r rad/s and the time since v_y's last accepted pseudo-measurement (s),
         trust (n, 4).
@@ -1183,7 +1187,8 @@ class ReferenceFilter:
         bias = np.empty((n, 4))
         trust = np.empty((n, 4))
         prm = self.kernel_params_speed if fx_from_speed else self.kernel_params
+        fy_sd = np.zeros(n) if fy_sd is None else np.ascontiguousarray(fy_sd, dtype=float)
         reference_kernel(prm, self.state, t, omega, torque, mu_x, np.ascontiguousarray(axle_slip),
-                         f_x, f_y, yaw_rate, delta, np.ascontiguousarray(extra_v),
+                         f_x, f_y, fy_sd, yaw_rate, delta, np.ascontiguousarray(extra_v),
                          np.ascontiguousarray(extra_var), v, sig, bias, trust)
         return {"v": v, "sigma": sig, "bias": bias, "trust": trust}
