@@ -51,8 +51,6 @@ from vestim.params import check_ranges, pack
 _JIT: dict[str, Any] = {"cache": True, "error_model": "numpy"}
 
 VX, VY, BX, BY, BR = 0, 1, 2, 3, 4
-LON = np.array([VX, BX])
-LAT = np.array([VY, BY, BR])
 
 
 @dataclass(frozen=True)
@@ -595,38 +593,34 @@ def gnss_calibration(prm: RadiusKernelParams, st: RadiusState, t: np.ndarray,
 
 
 @njit(**_JIT)
-def _block_update(x: np.ndarray, P: np.ndarray, idx: np.ndarray, z: float, r: float,
-                  gate: float) -> float:
-    """Kalman update of state idx[0] by a direct measurement z = x[idx[0]] + v, var(v) = r;
+def _direct_update(x: np.ndarray, P: np.ndarray, i: int, z: float, r: float, gate: float,
+                   work: np.ndarray) -> float:
+    """Kalman update of state ``i`` by a direct measurement z = x[i] + v, var(v) = r;
     returns the innovation (NaN if rejected beyond ``gate`` innovation standard deviations).
 
-    P is block diagonal (the blocks [v_x, b_x] and [v_y, b_y, b_r], see
-    :func:`reference_kernel`), so the update touches the block ``idx`` only:
-    K = P[idx, i]/s, P ← P − K P[i, idx] (for the optimal gain this equals the Joseph form).
+    K = P[:, i]/s, P ← P − K P[i, :] over the full state (for the optimal gain this equals
+    the Joseph form): the r-coupling of the prediction makes a v_x measurement inform v_y
+    and the other way round. ``work`` (≥ 1 row of the state's length) is scratch space.
     """
-    i = idx[0]
     s = P[i, i] + r
     innov = z - x[i]
     if innov * innov > gate * gate * s:
         return np.nan
-    m = idx.shape[0]
-    # K P[i, :] for a block of at most 3 states, without a scratch array (this runs six
-    # times per sample).
-    c0 = P[idx[0], i]
-    c1 = P[idx[1], i] if m > 1 else 0.0
-    c2 = P[idx[2], i] if m > 2 else 0.0
-    for a in range(m):
-        ca = c0 if a == 0 else (c1 if a == 1 else c2)
-        x[idx[a]] += ca / s * innov
-        for b in range(m):
-            cb = c0 if b == 0 else (c1 if b == 1 else c2)
-            P[idx[a], idx[b]] -= ca * cb / s
+    n = x.shape[0]
+    c = work[0]
+    for a in range(n):
+        c[a] = P[a, i]
+    for a in range(n):
+        x[a] += c[a] / s * innov
+        for b in range(n):
+            P[a, b] -= c[a] * c[b] / s
     return innov
 
 
 @njit(**_JIT)
 def _lateral_update(x: np.ndarray, P: np.ndarray, z: float, alpha: float, r_white: float,
-                    sig_col: float, inflate: float, s_side: float, gate: float) -> float:
+                    sig_col: float, inflate: float, s_side: float, gate: float,
+                    work: np.ndarray) -> float:
     """Update of v_y by an axle's linear-tire pseudo-measurement z (m/s).
 
     Its error has a white part (variance ``r_white``: the lateral-force noise) and a part
@@ -643,7 +637,7 @@ def _lateral_update(x: np.ndarray, P: np.ndarray, z: float, alpha: float, r_whit
         return np.nan
     if (alpha < 0.0 and innov > 0.0) or (alpha > 0.0 and innov < 0.0):
         sig_col *= 1.0 + (innov / s_side) ** 2
-    return _block_update(x, P, LAT, z, r_white + sig_col * sig_col * inflate, np.inf)
+    return _direct_update(x, P, VY, z, r_white + sig_col * sig_col * inflate, np.inf, work)
 
 
 class ReferenceKernelParams(NamedTuple):
@@ -711,7 +705,7 @@ class ReferenceState(NamedTuple):
 
     Attributes:
         x: (5,) [v_x, v_y, b_x, b_y, b_r] (m/s, m/s², rad/s; indices VX … BR).
-        P: (5, 5) its covariance (block diagonal: [v_x, b_x] and [v_y, b_y, b_r]).
+        P: (5, 5) its covariance (full: the r-coupling joins v_x and v_y).
         hist: (window, 5) the last ``window`` samples of (t, ω_fl … ω_rr), for ω̇; a ring
             buffer whose oldest row is ``oldest``.
         t_prev: time of the previous sample, s.
@@ -728,6 +722,7 @@ class ReferenceState(NamedTuple):
             and every CG-speed measurement of a log without wheel speeds, has been rejected.
         t_vy_unverified: time (s) since a v_y pseudo-measurement was last accepted (v_y is
             the a_y integral alone meanwhile; the consistency monitor's figure).
+        work: (2, 5) scratch space of a sample; no memory from one sample to the next.
     """
 
     x: np.ndarray
@@ -747,6 +742,7 @@ class ReferenceState(NamedTuple):
     t_speed_rejected: np.ndarray
     alpha_demo: np.ndarray
     t_vy_unverified: np.ndarray
+    work: np.ndarray
 
 
 def reference_params(p: ReferenceParams, radius: float, lf: float, lr: float, xw: np.ndarray,
@@ -775,7 +771,7 @@ def new_reference_state(window: int) -> ReferenceState:
                           oldest=np.zeros(1, dtype=np.int64), wheel_v=np.zeros(4),
                           wheel_slip=np.zeros(4), fy_var=np.zeros(1), t_vy_rejected=np.zeros(1),
                           t_speed_rejected=np.zeros(1), alpha_demo=np.zeros(1),
-                          t_vy_unverified=np.zeros(1))
+                          t_vy_unverified=np.zeros(1), work=np.zeros((2, 5)))
 
 
 @njit(**_JIT)
@@ -813,7 +809,7 @@ def _reference_rows(prm: ReferenceKernelParams, st: ReferenceState, start: int, 
     reference (two atomic reference-count operations), and a call per sample with them
     made the batch kernel 1.5 times slower (and a call with the arrays unpacked, 2.5)."""
     (x, P, hist, t_prev, started, fx_prev, fy_prev, r_prev, n_rejected, oldest_row, wheel_v,
-     wheel_slip, fy_var, t_vy_rej, t_speed_rej, alpha_demo, t_unverified) = st
+     wheel_slip, fy_var, t_vy_rej, t_speed_rej, alpha_demo, t_unverified, work) = st
     xw, yw = prm.xw, prm.yw
     m = hist.shape[0]
     nx = x.shape[0]
@@ -870,27 +866,32 @@ def _reference_rows(prm: ReferenceKernelParams, st: ReferenceState, start: int, 
             else:
                 x[VX] = vx + dt * (fxp - x[BX] + rp * vy)
             x[VY] = vy + dt * (fyp - x[BY] - rp * vx)
-            # The r-coupling of v_x and v_y stays out of the covariance: with a gyro bias and
-            # r → 0 on a straight road it would make the lateral pseudo-measurements a
-            # spurious v_x measurement (v_x ≈ (f_y − b_y)/r); [v_x, b_x] and [v_y, b_y, b_r]
-            # are therefore two decoupled blocks (P stays block diagonal) whose means are
-            # coupled through r. Longitudinal block: F = [[1, −dt], [0, 1]].
-            pvv = P[VX, VX] - 2.0 * dt * P[VX, BX] + dt * dt * P[BX, BX]
-            pvb = P[VX, BX] - dt * P[BX, BX]
-            P[VX, VX] = pvv
-            P[VX, BX] = pvb
-            P[BX, VX] = pvb
-            # Lateral block: v_y ← v_y − dt b_y + dt v_x b_r, i.e. row g = [1, −dt, dt v_x]:
-            # (P gᵀ) per state of the block, then g P gᵀ.
-            g1, g2 = -dt, dt * vx
-            p_y = P[VY, VY] + g1 * P[VY, BY] + g2 * P[VY, BR]
-            p_b = P[BY, VY] + g1 * P[BY, BY] + g2 * P[BY, BR]
-            p_r = P[BR, VY] + g1 * P[BR, BY] + g2 * P[BR, BR]
-            P[VY, VY] = p_y + g1 * p_b + g2 * p_r
-            P[BY, VY] = p_b
-            P[VY, BY] = p_b
-            P[BR, VY] = p_r
-            P[VY, BR] = p_r
+            # Covariance P ← F P Fᵀ with the r-coupling of v_x and v_y in F (000 eq. (15)'s
+            # Jacobian): F = I but for the rows
+            #   v_x: ∂/∂v_y = dt (r − b_r), ∂/∂b_x = −dt, ∂/∂b_r = −dt v_y  (not where f_x is
+            #        a speed's derivative, which holds r v_y already),
+            #   v_y: ∂/∂v_x = −dt (r − b_r), ∂/∂b_y = −dt, ∂/∂b_r = dt v_x.
+            # It was left out (two decoupled blocks) for fear that a gyro bias on a straight
+            # road would make the v_y pseudo-measurements a spurious v_x measurement; kept out,
+            # v_x followed a drifting v_y through r v_y and no speed fix corrected v_y (Revs:
+            # β 1.95° with it out, 0.86° with it in; v_x 0.073 → 0.052 m/s).
+            fxy = 0.0 if prm.kin_fx else dt * rp
+            fxr = 0.0 if prm.kin_fx else -dt * vy
+            fyx, fyr = -dt * rp, dt * vx
+            # F P: rows v_x and v_y (from the old rows), the others unchanged.
+            for j in range(nx):
+                work[0, j] = P[VX, j] + fxy * P[VY, j] - dt * P[BX, j] + fxr * P[BR, j]
+                work[1, j] = P[VY, j] + fyx * P[VX, j] - dt * P[BY, j] + fyr * P[BR, j]
+            for j in range(nx):
+                P[VX, j] = work[0, j]
+                P[VY, j] = work[1, j]
+            # (F P) Fᵀ: columns v_x and v_y likewise.
+            for j in range(nx):
+                work[0, j] = P[j, VX] + fxy * P[j, VY] - dt * P[j, BX] + fxr * P[j, BR]
+                work[1, j] = P[j, VY] + fyx * P[j, VX] - dt * P[j, BY] + fyr * P[j, BR]
+            for j in range(nx):
+                P[j, VX] = work[0, j]
+                P[j, VY] = work[1, j]
             P[VX, VX] += prm.q_vx * dt
             # v_y's process noise from the log's own f_y: its measured white noise (σ² T_s
             # per second) and its relative model error (roll gravity, scale), correlated
@@ -943,8 +944,8 @@ def _reference_rows(prm: ReferenceKernelParams, st: ReferenceState, start: int, 
             if innov_pred * innov_pred > prm.gate * prm.gate * (P[VX, VX] + sig * sig):
                 res = np.nan
             else:
-                res = _block_update(x, P, LON, v_meas,
-                                    r_w + slip_part * slip_part * inflate_w, np.inf)
+                res = _direct_update(x, P, VX, v_meas,
+                                     r_w + slip_part * slip_part * inflate_w, np.inf, work)
             out_trust[k, i] = np.inf if np.isnan(res) else sig
             wheel_v[i] = v_meas
             if not np.isnan(res):
@@ -968,8 +969,8 @@ def _reference_rows(prm: ReferenceKernelParams, st: ReferenceState, start: int, 
             if not np.isnan(extra_v[k, j]):
                 # A corner observer's error persists like a wheel's slip error: same inflation.
                 n_extra += 1
-                res = _block_update(x, P, LON, extra_v[k, j], extra_var[k, j] * inflate_w,
-                                    prm.gate)
+                res = _direct_update(x, P, VX, extra_v[k, j], extra_var[k, j] * inflate_w,
+                                     prm.gate, work)
                 if np.isnan(res):
                     innov_extra = extra_v[k, j] - x[VX]
                 else:
@@ -1033,7 +1034,7 @@ def _reference_rows(prm: ReferenceKernelParams, st: ReferenceState, start: int, 
             lam = max(wheel_slip[2 * a], wheel_slip[2 * a + 1]) / prm.k_comb
             side /= 1.0 + lam * lam
             res = _lateral_update(x, P, z, alpha, prm.r_vy, sig, inflate, side,
-                                  prm.gate_vy_sat + h * (prm.gate_vy - prm.gate_vy_sat))
+                                  prm.gate_vy_sat + h * (prm.gate_vy - prm.gate_vy_sat), work)
             n_lat += 1
             if np.isnan(res):
                 innov_lat = z - x[VY]
