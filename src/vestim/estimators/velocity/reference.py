@@ -622,20 +622,6 @@ def _direct_update(x: np.ndarray, P: np.ndarray, i: int, z: float, r: float, gat
 
 
 @njit(**_JIT)
-def _f_rows(P: np.ndarray, work: np.ndarray, dt: float, fxy: float, fxr: float, fyx: float,
-            fyr: float) -> None:
-    """P ← F P in place for the prediction's Jacobian F: the identity but for the rows
-    v_x = [1, fxy, −dt, 0, fxr] and v_y = [fyx, 1, 0, −dt, fyr] ([v_x, v_y, b_x, b_y, b_r]);
-    ``work`` (2, 5) holds the new rows while the old ones are read."""
-    for j in range(P.shape[1]):
-        work[0, j] = P[VX, j] + fxy * P[VY, j] - dt * P[BX, j] + fxr * P[BR, j]
-        work[1, j] = P[VY, j] + fyx * P[VX, j] - dt * P[BY, j] + fyr * P[BR, j]
-    for j in range(P.shape[1]):
-        P[VX, j] = work[0, j]
-        P[VY, j] = work[1, j]
-
-
-@njit(**_JIT)
 def _lateral_update(x: np.ndarray, P: np.ndarray, z: float, alpha: float, r_white: float,
                     sig_col: float, inflate: float, s_side: float, gate: float,
                     work: np.ndarray) -> float:
@@ -896,12 +882,20 @@ def _reference_rows(prm: ReferenceKernelParams, st: ReferenceState, start: int, 
             fxy = 0.0 if prm.kin_fx else dt * rp
             fxr = 0.0 if prm.kin_fx else -dt * vy
             fyx, fyr = -dt * rp, dt * vx
-            # F P Fᵀ = (F (F P)ᵀ)ᵀ, and P is symmetric: F's rows twice, a transpose between.
-            _f_rows(P, work, dt, fxy, fxr, fyx, fyr)
-            for i in range(nx):
-                for j in range(i + 1, nx):
-                    P[i, j], P[j, i] = P[j, i], P[i, j]
-            _f_rows(P, work, dt, fxy, fxr, fyx, fyr)
+            # F P: rows v_x and v_y (from the old rows), the others unchanged.
+            for j in range(nx):
+                work[0, j] = P[VX, j] + fxy * P[VY, j] - dt * P[BX, j] + fxr * P[BR, j]
+                work[1, j] = P[VY, j] + fyx * P[VX, j] - dt * P[BY, j] + fyr * P[BR, j]
+            for j in range(nx):
+                P[VX, j] = work[0, j]
+                P[VY, j] = work[1, j]
+            # (F P) Fᵀ: columns v_x and v_y likewise.
+            for j in range(nx):
+                work[0, j] = P[j, VX] + fxy * P[j, VY] - dt * P[j, BX] + fxr * P[j, BR]
+                work[1, j] = P[j, VY] + fyx * P[j, VX] - dt * P[j, BY] + fyr * P[j, BR]
+            for j in range(nx):
+                P[j, VX] = work[0, j]
+                P[j, VY] = work[1, j]
             P[VX, VX] += prm.q_vx * dt
             # v_y's process noise from the log's own f_y: its measured white noise (σ² T_s
             # per second) and its relative model error (roll gravity, scale), correlated
