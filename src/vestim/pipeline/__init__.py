@@ -52,7 +52,6 @@ from vestim.errors import LogFormatError
 from vestim.estimators import registry
 from vestim.estimators.force import ForceEstimator
 from vestim.estimators.force.estimator import (
-    ACCELEROMETERS,
     WHEEL_OUTPUTS,
     ColumnGroup,
     Inputs,
@@ -86,8 +85,8 @@ from vestim.estimators.uncertainty import (
     uncertainty_params,
 )
 from vestim.estimators.validity import GROUPS as VALIDITY_GROUPS
+from vestim.estimators.validity import VY_UNVERIFIED, validity, validity_params
 from vestim.estimators.validity import output_names as validity_names
-from vestim.estimators.validity import validity, validity_params
 from vestim.estimators.velocity.corner import CornerVelocityEstimator, CornerVelocityInput
 from vestim.estimators.velocity.kinematic import KinematicIntegrator
 from vestim.estimators.velocity.lpv_observer import LPVParams
@@ -439,8 +438,6 @@ class Pipeline:
                           u.ax if u.ax_measured else res["f_x"], u.ay, fz, vxt, vyt, slip_ratio,
                           c_y, self._unc_prm, self._unc_state)
         res.update({f"uncertainty.{k}": a for k, a in unc.items()})
-        self.vy_unverified_rows += int(np.sum(unverified >= self.config.validity.unverified_s))
-        self.rows_estimated += n
         res.update({"v": v, "sigma_v": sig, "bias": bias, "vy_unverified": unverified,
                     "vx_i": vx_i, "vy_i": vy_i,
                     "cornering_stiffness": c_y, "radius_scale": scale,
@@ -463,6 +460,9 @@ class Pipeline:
                             self._chunk_faulty if self._chunk_faulty is not None
                             else np.full(n, self._held_now),
                             self.config.validity, res["vy_unverified"]))
+        self.vy_unverified_rows += int(np.count_nonzero(
+            res["reason_velocity"].astype(np.int64) & VY_UNVERIFIED))
+        self.rows_estimated += n
         return res
 
     @staticmethod
@@ -669,11 +669,10 @@ class Pipeline:
                 if done == 0:  # the log's own declaration, else the configuration's
                     kind = str(log.attrs.get("accelerometer",
                                              self.config.force_params.accelerometer))
-                    if kind not in ACCELEROMETERS:
-                        raise LogFormatError(
-                            f"log metadata accelerometer = {kind!r}: use one of "
-                            f"{', '.join(ACCELEROMETERS)} (what ax, ay, az hold)")
-                    self.force.set_accelerometer(kind)
+                    try:
+                        self.force.set_accelerometer(kind)
+                    except ValueError as exc:
+                        raise LogFormatError(f"log metadata {exc} (what ax, ay, az hold)") from None
                 log = corrected_log(log, self.vehicle.calibration, wheel_radius=b.wheel_radius,
                                     steering_ratio=b.steering_ratio)
                 u = inputs_from_log(log, self.vehicle)

@@ -552,7 +552,7 @@ class ForceEstimator:
         """Take ``ax``, ``ay``, ``az`` as ``kind`` ("specific_force" | "gravity_free", see
         :class:`ForceConfig`) from the next sample on."""
         if kind not in ACCELEROMETERS:
-            raise ValueError(f"accelerometer {kind!r}: use one of {', '.join(ACCELEROMETERS)}")
+            raise ValueError(f"accelerometer = {kind!r}: use one of {', '.join(ACCELEROMETERS)}")
         self._att_prm = self._att_prm._replace(gravity=0.0 if kind == "gravity_free" else 1.0)
         self.accelerometer = kind
 
@@ -566,7 +566,7 @@ class ForceEstimator:
             return {}
         p = self._att_prm
         if p.roll_identify:
-            source, k = "identified", nrm.roll_gradient_solve(p, self._att)
+            source, k = "identified", nrm.roll_gradient_estimate(p, self._att)[0]
         else:
             source = "suspension" if "suspension" in self.vehicle.given else "calibrated"
             k = p.c_roll

@@ -103,9 +103,10 @@ def attitude_params(config: Any, c_roll: float, c_pitch: float, radius: float,
 
 @njit(**_JIT)
 def _roll_gradient(prm: AttitudeKernelParams, state: np.ndarray, dt: float, ay: float,
-                   r: float, v: float) -> float:
-    """One sample of the online roll gradient k (rad per m/s²), state[9:14] the forgotten
-    sums [Σx², Σx, Σ1, Σx e, Σe] of the regression e = k x + b.
+                   r: float, v: float) -> None:
+    """One sample of the online roll gradient k (rad per m/s²; :func:`roll_gradient_estimate`
+    solves for it), state[9:14] the forgotten sums [Σx², Σx, Σ1, Σx e, Σe] of the regression
+    e = k x + b.
 
     e = (a_y − r v)/g is the tilt the lateral specific force shows beyond the centripetal
     acceleration x = r v: a body-fixed accelerometer in a car that rolls φ = k a_y reads
@@ -131,13 +132,13 @@ def _roll_gradient(prm: AttitudeKernelParams, state: np.ndarray, dt: float, ay: 
         state[11] += w
         state[12] += w * x * e
         state[13] += w * e
-    return roll_gradient_solve(prm, state)
 
 
 @njit(**_JIT)
-def roll_gradient_solve(prm: AttitudeKernelParams, state: np.ndarray) -> float:
-    """The roll gradient k (rad per m/s²) that :func:`_roll_gradient`'s sums and priors give
-    (the prior k₀ before any sample), clipped to :data:`ROLL_GRADIENT_RANGE`."""
+def roll_gradient_estimate(prm: AttitudeKernelParams, state: np.ndarray) -> tuple[float, float]:
+    """The roll gradient k and its one-sigma (rad per m/s²) that :func:`_roll_gradient`'s
+    sums and the priors give (k₀ ± σ_k before any sample): the normal equations of (k, b)
+    and the inverse of their information; k is clipped to :data:`ROLL_GRADIENT_RANGE`."""
     pk = 1.0 / (prm.roll_gradient_sd * prm.roll_gradient_sd)
     pb = 1.0 / (ROLL_BIAS_SD * ROLL_BIAS_SD)
     m11 = state[9] + pk
@@ -145,20 +146,10 @@ def roll_gradient_solve(prm: AttitudeKernelParams, state: np.ndarray) -> float:
     m22 = state[11] + pb
     b1 = state[12] + pk * prm.roll_gradient_prior
     b2 = state[13]
-    k = (b1 * m22 - m12 * b2) / (m11 * m22 - m12 * m12)
-    return min(max(k, ROLL_GRADIENT_RANGE[0]), ROLL_GRADIENT_RANGE[1])
-
-
-@njit(**_JIT)
-def roll_gradient_sd(prm: AttitudeKernelParams, state: np.ndarray) -> float:
-    """The one-sigma of :func:`roll_gradient_solve`'s k (rad per m/s²): the inverse of the
-    regression's information, prior included (``roll_gradient_sd`` before any sample)."""
-    pk = 1.0 / (prm.roll_gradient_sd * prm.roll_gradient_sd)
-    pb = 1.0 / (ROLL_BIAS_SD * ROLL_BIAS_SD)
-    m11 = state[9] + pk
-    m12 = state[10]
-    m22 = state[11] + pb
-    return float(np.sqrt(m22 / (m11 * m22 - m12 * m12)))
+    det = m11 * m22 - m12 * m12
+    k = (b1 * m22 - m12 * b2) / det
+    return (min(max(k, ROLL_GRADIENT_RANGE[0]), ROLL_GRADIENT_RANGE[1]),
+            float(np.sqrt(m22 / det)))
 
 
 @njit(**_JIT)
@@ -171,7 +162,8 @@ def attitude_kernel(t: np.ndarray, ax: np.ndarray, ay: np.ndarray, p: np.ndarray
 
     ``fy_sd`` (n,): the relative one-sigma that the roll leaves in the road-plane f_y, g σ_k
     where the roll gradient k is identified (no roll rate, no stated suspension; σ_k from
-    :func:`roll_gradient_sd`), 0 elsewhere: the velocity filter's process noise takes it.
+    :func:`roll_gradient_estimate`), 0 elsewhere: the velocity filter's process noise
+    takes it.
 
     ``prm``: :class:`AttitudeKernelParams` (τ_φ, L_θ, c_roll, c_pitch, R, f_acc, the undriven
     axle, e_φ, L_φ, τ_b).
@@ -219,6 +211,7 @@ def attitude_kernel(t: np.ndarray, ax: np.ndarray, ay: np.ndarray, p: np.ndarray
     tau_b = prm.roll_bias_tau
     k_max, phi_0 = 0.02, 0.01
     for k in range(t.shape[0]):
+        k_sd = prm.roll_gradient_sd  # the identified gradient's σ (the prior's until updated)
         if free >= 0:
             v_w = 0.5 * radius * (omega[k, 2 * free] + omega[k, 2 * free + 1])
         else:
@@ -254,8 +247,10 @@ def attitude_kernel(t: np.ndarray, ax: np.ndarray, ay: np.ndarray, p: np.ndarray
                                                 0.0 if np.isnan(q[k]) else q[k], r[k],
                                                 state[0], state[1])
             if np.isnan(p[k]):
-                c_now = (_roll_gradient(prm, state, dt, ay[k], r[k], v_w) if prm.roll_identify
-                         else c_roll)
+                c_now = c_roll
+                if prm.roll_identify:
+                    _roll_gradient(prm, state, dt, ay[k], r[k], v_w)
+                    c_now, k_sd = roll_gradient_estimate(prm, state)
                 state[0] = c_now * ay[k]
             else:
                 if model_gain > 0.0:
@@ -278,8 +273,7 @@ def attitude_kernel(t: np.ndarray, ax: np.ndarray, ay: np.ndarray, p: np.ndarray
         pitch[k] = state[1]
         roll_acc[k] = state[5]
         pitch_acc[k] = state[7]
-        fy_sd[k] = G * roll_gradient_sd(prm, state) if (np.isnan(p[k])
-                                                        and prm.roll_identify) else 0.0
+        fy_sd[k] = G * k_sd if (np.isnan(p[k]) and prm.roll_identify) else 0.0
 
 
 class NormalLoadKernelParams(NamedTuple):

@@ -649,8 +649,8 @@ class ReferenceKernelParams(NamedTuple):
     :class:`ReferenceParams` and the vehicle's geometry).
 
     Attributes:
-        q_vx … pair_gap, sigma_corner_slip … reacquire_s: the :class:`ReferenceParams` fields of the same
-            name (``q_vx`` is ``q_vx_speed`` and ``slip_sign`` ∞ where ``kin_fx``).
+        q_vx … pair_gap, sigma_corner_slip … demo_tau: the :class:`ReferenceParams` fields of
+            the same name (``q_vx`` is ``q_vx_speed`` and ``slip_sign`` ∞ where ``kin_fx``).
         kin_fx: f_x is v̇_x itself, a speed's derivative (a log without ``ax``): the
             prediction leaves out r v_y; else the IMU's specific force.
         radius: wheel radius R, m.
@@ -724,6 +724,7 @@ class ReferenceState(NamedTuple):
         t_vy_rejected, t_speed_rejected: time (s) for which every v_y pseudo-measurement
             (counted only while the axles agree and stay below the demonstrated friction),
             and every CG-speed measurement of a log without wheel speeds, has been rejected.
+        alpha_demo: the demonstrated slip angle α_d, rad (``demo_ratio``).
         t_vy_unverified: time (s) since a v_y pseudo-measurement was last accepted (v_y is
             the a_y integral alone meanwhile; the consistency monitor's figure).
         work: (2, 5) scratch space of a sample; no memory from one sample to the next.
