@@ -176,7 +176,7 @@ def test_corner_kf_integrates_bias_corrected_acceleration():
 
 @pytest.mark.parametrize("velocity", ["fused", "reference"])
 def test_online_step_is_compiled_and_exact(velocity):
-    """The default configurations step through one compiled call (vestim.pipeline.online) and give
+    """The default configurations step through one compiled call (vestim.pipeline.rows) and give
     the batch result bit for bit, also through the fused filter's switch to the corner
     measurement (AWD ice launch: every wheel spins)."""
     run = strip(simulate(get_maneuver("launch_ice", tire="magic"), SUV, seed=1)).iloc[:1600]
@@ -185,7 +185,7 @@ def test_online_step_is_compiled_and_exact(velocity):
     rows = []
     for r in run.to_dict("records"):
         rows.append(online.step(r))
-        assert online._step_args is not None  # the compiled path was taken
+        assert online._rows is not None  # the compiled path was taken
     if velocity == "fused":
         assert not online._fused_is_reference  # the corner measurement did enter
     np.testing.assert_array_equal(pd.DataFrame(rows)[batch.columns].to_numpy(), batch.to_numpy())

@@ -23,10 +23,10 @@ arrays are passed in, as in :mod:`vestim.filters.linalg`):
   the UKF included: its measurement is linear in the state, so the sigma-point
   sums P_xy, P_yy equal P̄ Hᵀ and H P̄ Hᵀ + R exactly and the update is a
   linear one. Not yet the force stage's UKFs (longitudinal and lateral, which
-  keep their own updates): on these kernels the compiled one-sample step of
-  :mod:`vestim.pipeline.online` then differed from the batch run by 1e-16
-  relative (the same code optimised differently once inlined there), and the
-  two must agree bit for bit. The scalar kernel
+  keep their own updates): when step() had its own compiled composition, these
+  kernels optimised differently once inlined there made it differ from the batch
+  run by 1e-16 relative. Both now go through :mod:`vestim.pipeline.rows`, so
+  that obstacle is gone; the move itself is still to do. The scalar kernel
   is the vector one for m = 1 without the Cholesky factorisation (S is a number).
 
 * :func:`ukf_update` — the unscented update from sigma-point statistics (000

@@ -78,13 +78,11 @@ from vestim.estimators.health import (
     wheel_health_step,
 )
 from vestim.estimators.health import new_state as new_health_state
-from vestim.estimators.uncertainty import OUTPUT_NAMES as SIGMA_NAMES
 from vestim.estimators.uncertainty import new_state as new_uncertainty_state
 from vestim.estimators.uncertainty import (
     uncertainty,
     uncertainty_params,
 )
-from vestim.estimators.validity import GROUPS as VALIDITY_GROUPS
 from vestim.estimators.validity import VY_UNVERIFIED, validity, validity_params
 from vestim.estimators.validity import output_names as validity_names
 from vestim.estimators.velocity.corner import CornerVelocityEstimator, CornerVelocityInput
@@ -106,7 +104,7 @@ from vestim.io.channels import REF_PREFIX, SPARSE
 from vestim.io.log import check_structure
 from vestim.io.vehicle import Vehicle
 from vestim.models import kinematics as kin
-from vestim.pipeline import online
+from vestim.pipeline import rows as rows_kernel
 from vestim.pipeline.config import (
     VELOCITY_METHODS,
     PipelineConfig,
@@ -182,14 +180,18 @@ class Pipeline:
                                      self.config.reference, mass=b.mass)
         self._prev = np.array([np.nan, 0.0])  # (t, yaw rate) of the previous sample, for ṙ
         self._fused_is_reference = True  # the fused filter has not diverged from the plain one
-        self._step_args: tuple[Any, ...] | None = None  # compiled step's arguments (cache)
-        self._step_fn: Callable[..., None] | None = None  # its entry point for their types
+        # pipeline_rows' parameter and state trees (sharing the stages' arrays) and its entry
+        # point for their types: made on first use, dropped when a stage's state is replaced
+        self._rows: tuple[rows_kernel.Params, rows_kernel.State] | None = None
+        self._rows_fn: Callable[..., None] | None = None
+        self._rows_names: tuple[str, ...] = ()  # the output order the trees write
+        self._x1 = np.empty((1, rows_kernel.N_X))  # step()'s input row and output column
+        self._y1 = np.empty((rows_kernel.N_ROW, 1))
         self._t_prev_step = -math.inf  # step()'s guard: last t, last finite value per channel
         # the last sample whose every value was finite, and its time (step()'s hold)
         self._last_good: tuple[float, Mapping[str, float]] = (-math.inf, {})
-        self._t_start = math.nan  # first sample time (validity flags' convergence)
+        self._t_start = np.array([np.nan])  # first sample time (validity flags' convergence)
         self._held_now = False  # step() held a dropped input in this sample
-        self._post: tuple[Any, ...] | None = None  # _fast_post's index arrays and buffers
         self.gaps: list[tuple[float, float]] = []  # time gaps (s) the filters restarted after
         self.vy_unverified_rows = 0
         """Rows of the last run whose v_y had no accepted pseudo-measurement for
@@ -213,7 +215,6 @@ class Pipeline:
         # health and "input faulty" rows of the block _advance is working on (run and step)
         self._chunk_faulty: np.ndarray | None = None
         self._chunk_health: np.ndarray | None = None
-        self._step_names: list[str] = []
         self._step_rates: tuple[bool, bool] | None = None  # rate channels last noted
 
     def reset(self) -> None:
@@ -233,12 +234,11 @@ class Pipeline:
         self._health_state = new_health_state()
         self._imu_state = new_imu_state()
         self._unc_state = new_uncertainty_state()
-        self._t_start = math.nan  # first sample time, for the validity flags' convergence
+        self._t_start = np.array([np.nan])  # first sample time (validity flags' convergence)
         self._held_now = False  # step() held a dropped input in this sample
         self._t_gnss = np.nan
         self._fused_is_reference = True
-        self._step_args = None
-        self._step_fn = None
+        self._rows = None
         self._step_rates = None
 
     def unverified_warning(self) -> dict[str, str | float | None] | None:
@@ -326,11 +326,9 @@ class Pipeline:
             raise PipelineConfigError(
                 f"velocity method {method!r} needs the wheel speeds omega_fl … omega_rr, which "
                 "the log does not have: use velocity 'reference' or 'fused' (the default)")
+        self._rows = None  # this path replaces state arrays the compiled one's trees share
         res = self.force.advance(u)  # fills a missing a_x, and ω from the speed (see module)
-        self.force.note_sources({
-            "ax_source": "measured" if u.ax_measured else u.speed_source,
-            "speed_source": u.speed_source,
-            "outputs_unavailable": "none" if wheels else ",".join(WHEEL_ONLY_OUTPUTS)})
+        self._note_sources(u)
         fz = res["fz"]
         mu_x = normalised(res["fx"], fz)
         n = u.t.shape[0]
@@ -449,13 +447,13 @@ class Pipeline:
             res["sigma_fx"], res["sigma_fy"], slip_ratio, slip_angle,
             np.fmax(sig[:, 1], self._friction_prm.sigma_vy_floor)
             / np.maximum(np.abs(v[:, 0]), 1.0), c_y)
-        if math.isnan(self._t_start):
-            self._t_start = float(u.t[0])
+        if math.isnan(self._t_start[0]):
+            self._t_start[0] = u.t[0]
         if wheels:
             res["health_omega"] = (self._chunk_health if self._chunk_health is not None
                                    else np.ones((n, 4)))
         res["health_imu"] = self._chunk_imu if self._chunk_imu is not None else np.ones((n, 3))
-        res.update(validity(u.t, self._t_start, v[:, 0], slip_ratio, slip_angle,
+        res.update(validity(u.t, float(self._t_start[0]), v[:, 0], slip_ratio, slip_angle,
                             u.delta[:, :2], u.ay,
                             self._chunk_faulty if self._chunk_faulty is not None
                             else np.full(n, self._held_now),
@@ -464,6 +462,50 @@ class Pipeline:
             res["reason_velocity"].astype(np.int64) & VY_UNVERIFIED))
         self.rows_estimated += n
         return res
+
+    def _note_sources(self, u: Inputs) -> None:
+        """The input sources of ``u`` in the force estimator's metadata (after its own)."""
+        self.force.note_sources({
+            "ax_source": "measured" if u.ax_measured else u.speed_source,
+            "speed_source": u.speed_source,
+            "outputs_unavailable": ("none" if u.omega_measured
+                                    else ",".join(WHEEL_ONLY_OUTPUTS))})
+
+    def _compiled_rows(self, u: Inputs) -> bool:
+        """Whether :func:`~vestim.pipeline.rows.pipeline_rows` covers this configuration and
+        these inputs (every sensor it reads measured, no ``gnss_speed`` fix)."""
+        return (rows_kernel.covers(self) and u.omega_measured and u.torque_measured
+                and u.ax_measured and u.az_measured and not np.isfinite(u.gnss_speed).any())
+
+    def _run_rows(self, u: Inputs, faulty: np.ndarray, health: np.ndarray,
+                  imu_health: np.ndarray, spans: list[tuple[int, int]], restarts: list[int],
+                  names: tuple[str, ...], on_span: Callable[[int], None]) -> pd.DataFrame:
+        """One piece's estimates through :func:`~vestim.pipeline.rows.pipeline_rows`, span by
+        span (a restart after each gap), into one block (the frame's transpose)."""
+        self.force.note_sources(u.sources)
+        self._note_sources(u)
+        n = u.t.shape[0]
+        block = np.empty((len(names), n))
+        written = rows_kernel.columns(names)
+        block[np.setdiff1d(np.arange(len(names)), written[written >= 0])] = np.nan
+        X = np.empty((max(b - a for a, b in spans), rows_kernel.N_X))
+        inputs = (u.t, u.omega, u.torque, u.ax, u.ay, u.az, u.yaw_rate, u.roll_rate,
+                  u.pitch_rate, u.delta[:, :2], faulty, health, imu_health)
+        for a, stop in spans:
+            if a in restarts:  # the first sample after a gap: start again
+                self.reset()
+            self._trees(names)
+            j = 0
+            for values in inputs:
+                width = 1 if values.ndim == 1 else values.shape[1]
+                X[:stop - a, j:j + width] = values[a:stop].reshape(stop - a, width)
+                j += width
+            self._call_rows(X, block, a, stop)
+            on_span(stop)
+        reason = block[names.index("reason_velocity")].astype(np.int64)
+        self.vy_unverified_rows += int(np.count_nonzero(reason & VY_UNVERIFIED))
+        self.rows_estimated += n
+        return pd.DataFrame(block.T, columns=list(names), copy=False)
 
     @staticmethod
     def _groups(t: np.ndarray, res: dict[str, np.ndarray]) -> list[ColumnGroup]:
@@ -512,11 +554,11 @@ class Pipeline:
         return groups
 
     def _calls(self) -> tuple[Callable[..., None], ...]:
-        """:meth:`step`'s compiled per-sample calls (:func:`wheel_health_step`,
-        :func:`imu_health_step`, :func:`online.post_step_kernel`) as entry points for the
-        Numba types of this pipeline's params, states and buffers, made once: a call then
-        skips the dispatcher's typing of each NamedTuple argument (several µs a call). They
-        are only called with those objects (a reset state is a new one of the same type)."""
+        """:meth:`step`'s compiled per-sample health calls (:func:`wheel_health_step`,
+        :func:`imu_health_step`) as entry points for the Numba types of this pipeline's
+        params, states and buffers, made once: a call then skips the dispatcher's typing of
+        each NamedTuple argument (several µs a call). They are only called with those objects
+        (a reset state is a new one of the same type)."""
         if self._step_calls is None:
             w, out, health = self._health_buf
             wi, delta, out3, health3 = self._imu_buf
@@ -524,12 +566,7 @@ class Pipeline:
                               out[0], health[0])
             imu = _compiled(imu_health_step, self._imu_prm, self._imu_state, 0.0, 0.0, 0.0,
                             0.0, wi, delta, out3, health3[0])
-            post = _compiled(online.post_step_kernel, self._friction_prm,
-                             self._friction_state, self._validity_prm, self._unc_prm,
-                             self._unc_state, np.empty(1), np.empty(1, dtype=np.int64),
-                             np.empty(1, dtype=np.int64), np.empty(1), False, 0.0, 0.0,
-                             health[0], health3[0], np.empty(1))
-            self._step_calls = (wheel, imu, post)
+            self._step_calls = (wheel, imu)
         return self._step_calls
 
     def _wheel_health(self, sample: Mapping[str, float]) -> Mapping[str, float]:
@@ -719,7 +756,15 @@ class Pipeline:
                         progress(min((done + stop) / total, 1.0))
                     return groups
 
-                frame = frame_from_chunks((advance(a, e) for a, e in spans), n, names)
+                if self._compiled_rows(u):
+                    def on_span(stop: int, done: int = done) -> None:
+                        if progress is not None and total:
+                            progress(min((done + stop) / total, 1.0))
+
+                    frame = self._run_rows(u, faulty, health, imu_health, spans, restarts,
+                                           tuple(names) or rows_kernel.ROW_NAMES, on_span)
+                else:
+                    frame = frame_from_chunks((advance(a, e) for a, e in spans), n, names)
                 names = list(frame.columns)
                 t_last, done = float(u.t[-1]), done + n
                 yield frame
@@ -729,9 +774,10 @@ class Pipeline:
     def step(self, sample: Mapping[str, float]) -> dict[str, float]:
         """Advance by one sample (mapping of the log's column names); return that row.
 
-        Samples with wheel torques and ``az`` in the common configurations go through one
-        compiled call (:mod:`vestim.pipeline.online`); others through the general path. Both give
-        the batch result.
+        In the configurations and with the sensors :mod:`vestim.pipeline.rows` covers, the
+        sample goes through :func:`~vestim.pipeline.rows.pipeline_rows`, the call
+        :meth:`run` makes over its blocks; others through the general path. Both give the batch
+        result.
 
         A live feed drops values: a NaN or inf in a measured channel is replaced by its value
         in the last sample whose every value was finite, for up to :data:`HOLD_S` (one bad
@@ -754,46 +800,65 @@ class Pipeline:
             correct_columns(cols, cal, wheel_radius=b.wheel_radius, steering_ratio=b.steering_ratio)
             sample = {k: float(v[0]) for k, v in cols.items()}
         sample = self._imu_health(sample)
-        row = self._fast_step(sample)
+        row = self._row_step(sample)
         if row is not None:
             return row
-        self._step_args = self._step_fn = None  # the general path moves state it caches
+        self._rows = None  # the general path replaces state arrays the trees share
         u = self.force._inputs_from_sample(sample)
         cols = columns_from_groups(self._groups(u.t, self._advance(u)))
         return {k: float(v[0]) for k, v in cols.items()}
 
-    def _fast_step(self, sample: Mapping[str, float]) -> dict[str, float] | None:
-        """One sample through :func:`vestim.pipeline.online.step_kernel`, or None if not covered
-        (a ``gnss_speed`` channel takes the general path)."""
-        if "gnss_speed" in sample:
-            return None
-        if self._step_args is None:
-            self._step_args = online.build_step(self)
-            if self._step_args is None:
-                return None
-            per_corner = ("vx", "vy", "vxt", "vyt", "slip_ratio", "slip_angle", "fx", "fy", "fz",
-                          "mu_x", "mu_y", "sigma_fx", "sigma_fy")
-            self._step_names = ["t", "vx", "vy", "sigma_vx", "sigma_vy",
-                                *(f"{q}_{c}" for q in per_corner for c in CORNERS),
-                                "roll", "pitch", "bias_ax", "cornering_stiffness"]
-        try:
-            vec = [float(sample[k]) for k in online.SAMPLE_KEYS[:13]]  # t … yaw_rate
-            vec += [float(sample.get("roll_rate", np.nan)),
-                    float(sample.get("pitch_rate", np.nan)),
-                    float(sample["delta_fl"]), float(sample["delta_fr"])]
-        except KeyError:  # no torques, az or per-wheel steering: the general path
-            return None
-        s = np.array(vec)
-        out = np.empty(len(self._step_names))
-        args = self._step_args
-        if self._step_fn is None:  # the entry point for these argument types, typed once
-            self._step_fn = _compiled(online.step_kernel, s, out, *args)
-        self._step_fn(s, out, *args)
-        pstate = args[online.STEP_PSTATE]
-        self._prev = pstate[:2]  # a view: the general path replaces it, never writes into it
-        self._fused_is_reference = bool(pstate[2])
+    def _trees(self, names: tuple[str, ...]) -> None:
+        """Make :func:`~vestim.pipeline.rows.pipeline_rows`' parameter and state trees once
+        (until a reset or the general path), writing Y's rows in the order of ``names``."""
+        if self._rows is None:
+            self._rows = rows_kernel.build(self, names)
+            self._rows_names = names
+        elif names is not self._rows_names:
+            P, S = self._rows
+            self._rows = (P._replace(col=rows_kernel.columns(names)), S)
+            self._rows_names = names
+
+    def _call_rows(self, X: np.ndarray, Y: np.ndarray, start: int, stop: int) -> None:
+        """:func:`~vestim.pipeline.rows.pipeline_rows` on the trees, through the entry point
+        for their types (typed once), then the Python-side state that mirrors its state."""
+        assert self._rows is not None
+        P, S = self._rows
+        if self._rows_fn is None:
+            self._rows_fn = _compiled(rows_kernel.pipeline_rows, P, S, X, Y, start, stop)
+        self._rows_fn(P, S, X, Y, start, stop)
+        prev = S.velocity.prev
+        self._prev = prev[:2]  # a view: the general path replaces it, never writes into it
+        self._fused_is_reference = bool(prev[2])
         if self.corner is not None and self.config.velocity == "fused":
-            self.corner._t_last = vec[0]
+            self.corner._t_last = float(X[stop - start - 1, rows_kernel.X_T])
+
+    def _row_step(self, sample: Mapping[str, float]) -> dict[str, float] | None:
+        """One sample through :func:`~vestim.pipeline.rows.pipeline_rows`, or None where it
+        does not cover the configuration or the sample (no torques, ``az`` or ``ax``, or a
+        ``gnss_speed``: the general path)."""
+        if "gnss_speed" in sample or not rows_kernel.covers(self):
+            return None
+        x = self._x1[0]
+        try:
+            for j, key in enumerate(rows_kernel.X_CHANNELS[:rows_kernel.X_P]):
+                x[j] = float(sample[key])
+        except KeyError:
+            return None
+        x[rows_kernel.X_P] = float(sample.get("roll_rate", np.nan))
+        x[rows_kernel.X_Q] = float(sample.get("pitch_rate", np.nan))
+        if "delta_fl" in sample and "delta_fr" in sample:
+            x[rows_kernel.X_DELTA] = float(sample["delta_fl"])
+            x[rows_kernel.X_DELTA + 1] = float(sample["delta_fr"])
+        else:
+            return None
+        x[rows_kernel.X_HELD] = 1.0 if self._held_now else 0.0
+        x[rows_kernel.X_HEALTH_OMEGA:rows_kernel.X_HEALTH_IMU] = (
+            _ONES if self._chunk_health is None else self._health_buf[2][0])
+        x[rows_kernel.X_HEALTH_IMU:] = (_ONES[:3] if self._chunk_imu is None
+                                        else self._imu_buf[3][0])
+        self._trees(rows_kernel.ROW_NAMES)
+        self._call_rows(self._x1, self._y1, 0, 1)
         rates = ("roll_rate" in sample, "pitch_rate" in sample)
         if rates != self._step_rates:
             self._step_rates = rates
@@ -803,39 +868,7 @@ class Pipeline:
                 "pitch_source": "rate" if rates[1] else "quasi_static",
                 "ax_source": "measured", "speed_source": "wheel_speeds",
                 "outputs_unavailable": "none"})
-        row = dict(zip(self._step_names, out.tolist(), strict=True))
-        row["radius_scale"] = 1.0  # no gnss_speed on this path
-        row["gnss_latency"] = 0.0
-        self._fast_post(out, s, row)
-        return row
-
-    def _fast_post(self, out: np.ndarray, s: np.ndarray, row: dict[str, float]) -> None:
-        """The friction, validity and uncertainty stages and the health flags for one sample
-        ``s`` (layout of :data:`~vestim.pipeline.online.SAMPLE_KEYS` + δ_fl, δ_fr) of the
-        compiled path, in one call of :func:`~vestim.pipeline.online.post_step_kernel`
-        (the same steps as :meth:`_advance`'s kernels) on buffers made once."""
-        if self._post is None:
-            at = {name: j for j, name in enumerate(self._step_names)}
-            ix = [at["t"], at["vx"], at["sigma_vy"], at["cornering_stiffness"]]
-            ix += [at[f"{q}_{c}"] for q in ("fx", "fy", "fz", "sigma_fx", "sigma_fy",
-                                            "slip_ratio", "slip_angle") for c in CORNERS]
-            ix_unc = [at[k] for k in ("vx", "sigma_vx", "sigma_vy", "cornering_stiffness")]
-            ix_unc += [at[f"{q}_{c}"] for q in ("fz", "vxt", "vyt", "slip_ratio")
-                       for c in CORNERS]
-            self._post = (np.array(ix, dtype=np.int64), np.array(ix_unc, dtype=np.int64),
-                          np.empty(online.N_POST))
-        ix, ix_unc, post = self._post
-        if math.isnan(self._t_start):
-            self._t_start = float(out[ix[0]])
-        ones = _ONES
-        wheel = ones if self._chunk_health is None else self._health_buf[2][0]
-        imu = ones if self._chunk_imu is None else self._imu_buf[3][0]
-        ref = self.reference if self._fused_is_reference else self.fused  # the one output
-        self._calls()[2](self._friction_prm, self._friction_state, self._validity_prm,
-                         self._unc_prm, self._unc_state, out, ix, ix_unc, s,
-                         bool(self._held_now), self._t_start,
-                         float(ref.state.t_vy_unverified[0]), wheel, imu, post)
-        row.update(zip(_POST_NAMES, post.tolist(), strict=True))
+        return dict(zip(rows_kernel.ROW_NAMES, self._y1[:, 0].tolist(), strict=True))
 
 
 _HELD = {False: np.array([False]), True: np.array([True])}
@@ -845,15 +878,6 @@ _ONES = np.ones(4)
 """The health of a stage that did not run in step() (1.0: healthy)."""
 
 _OMEGA_KEYS = tuple(f"omega_{c}" for c in CORNERS)
-
-_POST_NAMES: tuple[str, ...] = (
-    *(n for c in CORNERS for n in (f"mu_{c}", f"sigma_mu_{c}", f"mu_{c}_excited")),
-    *(n for g in VALIDITY_GROUPS for n in (f"valid_{g}", f"reason_{g}")),
-    *(f"health_omega_{c}" for c in CORNERS), "health_ax", "health_ay", "health_yaw_rate",
-    *SIGMA_NAMES)
-"""The names of :func:`online.post_step_kernel`'s ``post`` row, in order (step()'s row
-order)."""
-
 
 UNVERIFIED_WARN = 0.01
 """Share of a run's rows with v_y unverified from which the output metadata warns."""

@@ -1,0 +1,607 @@
+"""The pipeline composed in one compiled call: ``pipeline_rows(P, S, X, Y, start, stop)``.
+
+Every stage of 001 Fig. 1 advances row by row inside one Numba kernel: the attitude and
+normal loads, the longitudinal and lateral force UKFs, the online cornering stiffness, the
+reference filter (and the fused one with the corner observer's measurement), the corner
+LuGre KF with its axle fusion, then friction, validity and uncertainty. ``P`` is one nested
+tree of parameters and ``S`` one tree of states (NamedTuples of arrays), built from a
+:class:`~vestim.pipeline.Pipeline` by :func:`build`; ``X`` holds the inputs (n, :data:`N_X`)
+after the health stages and ``Y`` the outputs as their transpose (columns, n): pandas stores
+a float block that way, so the frame is made without a copy. :meth:`Pipeline.run` calls it
+over the rows of a chunk and :meth:`Pipeline.step` over one row, so the two give the same
+numbers by construction.
+
+It covers force ``ukf`` with normal loads ``dynamic`` or ``static``, velocity ``fused`` or
+``reference``, fusion ``axle`` or ``adaptive``, and logs with wheel speeds, wheel torques,
+``ax``, ``az`` and no ``gnss_speed`` (:func:`covers`); the other configurations still go
+through the stage-by-stage path of :meth:`Pipeline._advance`. The per-sample equations are
+those cited in :mod:`vestim.estimators.force.estimator`, :mod:`vestim.estimators.force.normal`
+and :mod:`vestim.pipeline`.
+"""
+
+from __future__ import annotations
+
+from typing import TYPE_CHECKING, Any, NamedTuple
+
+import numpy as np
+from numba import njit
+
+from vestim.estimators.force.estimator import normalised
+from vestim.estimators.force.lateral import lateral_kernel, split_weights
+from vestim.estimators.force.longitudinal import UKFKernelParams, ukf_kernel
+from vestim.estimators.force.normal import (
+    AttitudeKernelParams,
+    NormalLoadKernelParams,
+    attitude_kernel,
+    normal_load_params,
+    normal_loads_kernel,
+)
+from vestim.estimators.friction import FrictionKernelParams, FrictionState, friction_step
+from vestim.estimators.fusion.axle import adaptive_axle_kernel, fixed_axle_kernel
+from vestim.estimators.uncertainty import N_OUT as N_SIGMA
+from vestim.estimators.uncertainty import OUTPUT_NAMES as SIGMA_NAMES
+from vestim.estimators.uncertainty import (
+    UncertaintyKernelParams,
+    UncertaintyState,
+    uncertainty_step,
+)
+from vestim.estimators.validity import GROUPS as VALIDITY_GROUPS
+from vestim.estimators.validity import ValidityKernelParams, validity_step
+from vestim.estimators.velocity.lugre_kf import KFParams, lugre_kf_kernel
+from vestim.estimators.velocity.reference import (
+    ReferenceKernelParams,
+    ReferenceState,
+    StiffnessKernelParams,
+    StiffnessState,
+    _reference_rows,
+    _stiffness_rows,
+    copy_reference_state,
+)
+from vestim.models.chassis import torque_less_rolling_resistance
+from vestim.models.kinematics import (
+    corner_acc_kernel,
+    road_specific_force,
+    rotate_kernel,
+    slip_angle_kernel,
+    slip_ratio_kernel,
+    transport_kernel,
+    yaw_acceleration_kernel,
+)
+
+if TYPE_CHECKING:
+    from vestim.pipeline import Pipeline  # the package this module belongs to
+
+_JIT: dict[str, Any] = {"cache": True, "error_model": "numpy"}
+
+CORNER_KEYS = ("fl", "fr", "rl", "rr")
+
+# --- the input row X[k] -------------------------------------------------------------------
+X_T, X_OMEGA, X_TORQUE, X_AX, X_AY, X_AZ, X_R, X_P, X_Q, X_DELTA = 0, 1, 5, 9, 10, 11, 12, 13, 14, 15
+X_HELD, X_HEALTH_OMEGA, X_HEALTH_IMU = 17, 18, 22
+N_X = 25
+X_CHANNELS: tuple[str, ...] = (
+    "t", *(f"omega_{c}" for c in CORNER_KEYS), *(f"torque_{c}" for c in CORNER_KEYS), "ax",
+    "ay", "az", "yaw_rate", "roll_rate", "pitch_rate", "delta_fl", "delta_fr")
+"""The log channels of X's first columns, in order (then: an input was held (1/0), the
+wheel-speed health (4) and the IMU health (3), 1.0 healthy)."""
+
+# --- the output row, in the kernel's order (Params.col places each in Y) -------------------
+_PER_CORNER = ("vx", "vy", "vxt", "vyt", "slip_ratio", "slip_angle", "fx", "fy", "fz", "mu_x",
+               "mu_y", "sigma_fx", "sigma_fy")
+ROW_NAMES: tuple[str, ...] = (
+    "t", "vx", "vy",
+    *(f"{q}_{c}" for q in _PER_CORNER for c in CORNER_KEYS),
+    "roll", "pitch", "bias_ax", "cornering_stiffness", "radius_scale", "gnss_latency",
+    *(n for c in CORNER_KEYS for n in (f"mu_{c}", f"sigma_mu_{c}", f"mu_{c}_excited")),
+    *(n for g in VALIDITY_GROUPS for n in (f"valid_{g}", f"reason_{g}")),
+    *(f"health_omega_{c}" for c in CORNER_KEYS), "health_ax", "health_ay", "health_yaw_rate",
+    *SIGMA_NAMES)
+"""Every quantity one row computes, in the order the kernel writes them."""
+_R_MU = 3 + 4 * len(_PER_CORNER) + 6
+_N_GROUPS = len(VALIDITY_GROUPS)
+_R_HEALTH = _R_MU + 12 + 2 * _N_GROUPS
+_R_SIGMA = _R_HEALTH + 7
+N_ROW = _R_SIGMA + N_SIGMA
+
+
+class ForceParams(NamedTuple):
+    """The force stage's parameters (SI): the attitude, normal loads, longitudinal UKF
+    (``lon_*``, as :func:`~vestim.estimators.force.longitudinal.ukf_kernel`'s) and lateral
+    UKF (``lat_*``, as :func:`~vestim.estimators.force.lateral.lateral_kernel`'s)."""
+
+    radius: float  # effective wheel radius, m
+    rolling_moment: float  # rolling-resistance coefficient × radius, m
+    drag_coef: float  # aerodynamic drag per speed², N s²/m²
+    yaw_inertia: float  # kg m²
+    load_exponent: float  # the lateral split's load exponent
+    slip_scale: float  # the lateral split's slip scale
+    normal: NormalLoadKernelParams
+    dynamic: bool  # normal loads "dynamic" (else "static")
+    attitude: AttitudeKernelParams
+    lon: UKFKernelParams
+    lon_wm: np.ndarray
+    lon_wc: np.ndarray
+    lon_tau: float
+    xw: np.ndarray  # corner positions ahead of the CG, m
+    yw: np.ndarray  # corner positions left of the CG, m
+    lat_q: np.ndarray
+    lat_r: np.ndarray
+    lat_wm: np.ndarray
+    lat_wc: np.ndarray
+    lat_tau: float
+
+
+class ForceState(NamedTuple):
+    """The force stage's states (shared with :class:`~vestim.estimators.force.ForceEstimator`)."""
+
+    attitude: np.ndarray
+    lon_x: np.ndarray
+    lon_cov: np.ndarray
+    lon_hist_t: np.ndarray
+    lon_hist_w: np.ndarray
+    lat_x: np.ndarray
+    lat_cov: np.ndarray
+    lat_state: np.ndarray
+
+
+class CornerParams(NamedTuple):
+    """The LuGre corner KF's parameters (:func:`~vestim.estimators.velocity.lugre_kf.
+    lugre_kf_kernel`'s): the tire's κ, σ0, σ1, σ2, the noise, the high-slip detector's."""
+
+    kappa: float
+    sigma0: float
+    sigma1: float
+    sigma2: float
+    r: float
+    r_high: float
+    step_ref: float
+    lam_u: float
+    lam_l: float
+    beta_e: float
+    wdot_th: float
+    min_speed: float
+    mu_release: float
+    q: np.ndarray
+    q_high: np.ndarray
+    p0: np.ndarray
+    release_window: int
+    use_ukf: bool
+    wm: np.ndarray
+    wc: np.ndarray
+    tau: float
+
+
+class CornerState(NamedTuple):
+    """The corner KF's states (shared with :class:`~vestim.estimators.velocity.corner.
+    CornerVelocityEstimator`)."""
+
+    x: np.ndarray
+    P: np.ndarray
+    hold: np.ndarray
+    acc: np.ndarray
+    stats: np.ndarray
+    w_buf: np.ndarray
+    t_buf: np.ndarray
+    ring: np.ndarray
+
+
+class VelocityParams(NamedTuple):
+    """The velocity stage's parameters: the online cornering stiffness, the reference filter,
+    the method (``fused``: the fused filter takes the corner observer's CG v_x while ≥ 3
+    corners slip), the corner observer and the axle fusion (``adaptive``, else fixed)."""
+
+    stiffness: StiffnessKernelParams
+    reference: ReferenceKernelParams
+    fused: bool
+    corner: CornerParams
+    adaptive: bool
+    eta_front: float
+    w_s: float
+    w_range: float
+    rho: float
+    threshold: float
+
+
+class VelocityState(NamedTuple):
+    """The velocity stage's states: ``prev`` = [t, yaw rate] of the previous sample (ṙ) and
+    whether the fused filter is still the plain one (1/0)."""
+
+    stiffness: StiffnessState
+    reference: ReferenceState
+    fused: ReferenceState
+    prev: np.ndarray
+    corner: CornerState
+
+
+class PostParams(NamedTuple):
+    """Friction, validity and uncertainty parameters."""
+
+    friction: FrictionKernelParams
+    validity: ValidityKernelParams
+    uncertainty: UncertaintyKernelParams
+
+
+class PostState(NamedTuple):
+    """Friction and uncertainty states; ``t_start`` (1,) the first sample's time, s (NaN
+    before it)."""
+
+    friction: FrictionState
+    uncertainty: UncertaintyState
+    t_start: np.ndarray
+
+
+class Params(NamedTuple):
+    """The whole pipeline's parameters; ``col`` (N_ROW,) places each quantity of
+    :data:`ROW_NAMES` in Y (−1: not written)."""
+
+    force: ForceParams
+    velocity: VelocityParams
+    post: PostParams
+    col: np.ndarray
+
+
+class State(NamedTuple):
+    """The whole pipeline's state."""
+
+    force: ForceState
+    velocity: VelocityState
+    post: PostState
+
+
+BLOCK = 1024
+"""Samples per stage pass of :func:`pipeline_rows`: each stage runs over a block before the
+next (the intermediates stay in cache, the kernels' scratch is allocated once a block)."""
+
+
+@njit(**_JIT)
+def pipeline_rows(P: Params, S: State, X: np.ndarray, Y: np.ndarray, start: int,
+                  stop: int) -> None:
+    """Samples [start, stop) through every stage: sample k's inputs are ``X[k - start]``
+    (X: (≥ stop − start, :data:`N_X`)) and its quantities go to ``Y[P.col[j], k]`` (Y:
+    (columns, n), the transpose of the output frame). ``S`` is advanced; the result does
+    not depend on how the samples are split between calls."""
+    for a in range(start, stop, BLOCK):
+        b = min(a + BLOCK, stop)
+        _block(P, S, X[a - start:b - start], Y, a)
+
+
+@njit(**_JIT)
+def _put(Y: np.ndarray, col: np.ndarray, j: int, values: np.ndarray, k0: int) -> None:
+    """Quantity j of :data:`ROW_NAMES` (values (m,)) into Y's columns k0 … k0 + m − 1."""
+    row = col[j]
+    if row >= 0:
+        for i in range(values.shape[0]):
+            Y[row, k0 + i] = values[i]
+
+
+@njit(**_JIT)
+def _put4(Y: np.ndarray, col: np.ndarray, j: int, values: np.ndarray, k0: int) -> None:
+    """Quantities j … j + 3 (values (m, 4), one per corner) into Y (see :func:`_put`)."""
+    for c in range(4):
+        row = col[j + c]
+        if row >= 0:
+            for i in range(values.shape[0]):
+                Y[row, k0 + i] = values[i, c]
+
+
+@njit(**_JIT)
+def _block(P: Params, S: State, x: np.ndarray, Y: np.ndarray, k0: int) -> None:
+    """The samples ``x`` (m, :data:`N_X`) through the stages, stage by stage, into Y's
+    columns k0 … k0 + m − 1 (the sample-by-sample recursions of each stage: the split into
+    blocks changes no number)."""
+    fp = P.force
+    fs = S.force
+    vp = P.velocity
+    vs = S.velocity
+    m = x.shape[0]
+    t = x[:, X_T].copy()
+    omega = x[:, X_OMEGA:X_OMEGA + 4].copy()
+    torque = x[:, X_TORQUE:X_TORQUE + 4].copy()
+    ax = x[:, X_AX].copy()
+    ay = x[:, X_AY].copy()
+    az = x[:, X_AZ].copy()
+    r = x[:, X_R].copy()
+    p_rate = x[:, X_P].copy()
+    q_rate = x[:, X_Q].copy()
+    delta = np.zeros((m, 4))
+    delta[:, 0] = x[:, X_DELTA]
+    delta[:, 1] = x[:, X_DELTA + 1]
+    radius = fp.radius
+    xw, yw = fp.xw, fp.yw
+    # --- force stage (ForceEstimator.advance) ---
+    roll = np.empty(m)
+    pitch = np.empty(m)
+    roll_acc = np.empty(m)
+    pitch_acc = np.empty(m)
+    fy_sd = np.empty(m)
+    att = fp.attitude
+    attitude_kernel(t, ax, ay, p_rate, q_rate, r, omega, att, fs.attitude, roll, pitch,
+                    roll_acc, pitch_acc, fy_sd)
+    fxa, fya, fza = road_specific_force(ax, ay, az, att.gravity * roll, att.gravity * pitch)
+    fz = normal_loads_kernel(fxa, fya, fza, roll, pitch, p_rate, q_rate, roll_acc, pitch_acc,
+                             fp.normal, fp.dynamic)
+    teff = torque_less_rolling_resistance(torque, omega, fz, fp.rolling_moment)
+    fx = np.empty((m, 4))
+    sig_fx = np.full((m, 4), np.nan)
+    high = np.empty((m, 4), dtype=np.bool_)
+    ukf_kernel(t, omega, teff, fp.lon, fp.lon_wm, fp.lon_wc, fp.lon_tau, fs.lon_x, fs.lon_cov,
+               fs.lon_hist_t, fs.lon_hist_w, fx, sig_fx, high)
+    w_mean = np.empty(m)
+    drag = np.empty(m)
+    speed = np.empty(m)
+    for i in range(m):
+        w_mean[i] = 0.25 * (omega[i, 0] + omega[i, 1] + omega[i, 2] + omega[i, 3])
+        drag[i] = fp.drag_coef * (radius * w_mean[i]) ** 2
+        speed[i] = radius * np.median(omega[i])
+    weights = split_weights(fz, omega, torque, r, radius, yw, fp.load_exponent, fp.slip_scale)
+    fy = np.empty((m, 4))
+    sig_fy = np.empty((m, 4))
+    lateral_kernel(t, fx, delta, weights, fxa, fya, r, drag, fz, speed, fp.normal.mass,
+                   fp.yaw_inertia, xw, yw, fp.lat_q, fp.lat_r, fp.lat_wm, fp.lat_wc,
+                   fp.lat_tau, fs.lat_x, fs.lat_cov, fs.lat_state, fy, sig_fy)
+    # --- velocity stage (Pipeline._advance) ---
+    mu_x = normalised(fx, fz)
+    mu_y = normalised(fy, fz)
+    axle = np.empty((m, 2))
+    c_y = np.empty(m)
+    _stiffness_rows(vp.stiffness, vs.stiffness, 0, m, t, omega, r, delta, fy, fz, axle, c_y)
+    none_v = np.full((m, 0), np.nan)
+    v_ref = np.empty((m, 2))
+    sig_ref = np.empty((m, 2))
+    bias_ref = np.empty((m, 4))
+    trust = np.empty((m, 4))
+    prev = vs.prev
+    same = vp.fused and prev[2] == 1.0
+    if same:
+        # While it is the plain filter the fused filter's state is not used: it holds the
+        # plain filter's state before this block, the start of its first own step.
+        copy_reference_state(vs.fused, vs.reference)
+    _reference_rows(vp.reference, vs.reference, 0, m, t, omega, torque, mu_x, axle, fxa, fya,
+                    fy_sd, r, delta, none_v, none_v, v_ref, sig_ref, bias_ref, trust)
+    v = v_ref
+    sig = sig_ref
+    bias = bias_ref
+    if vp.fused:
+        v, sig, bias = _fused(P, S, t, omega, torque, delta, r, w_mean, fxa, fya, fy_sd, mu_x,
+                              axle, v_ref, sig_ref, bias_ref, same)
+    # --- the corners' kinematics ---
+    vx_o, vy_o = transport_kernel(v[:, 0].copy(), v[:, 1].copy(), r, xw, yw, 1.0)
+    vxt = np.empty((m, 4))
+    vyt = np.empty((m, 4))
+    rotate_kernel(vx_o.reshape(-1), vy_o.reshape(-1), delta.reshape(-1), 1.0, vxt.reshape(-1),
+                  vyt.reshape(-1))
+    sr = np.empty((m, 4))
+    slip_ratio_kernel(omega.reshape(-1), vxt.reshape(-1), radius, 0.1, sr.reshape(-1))
+    sa = np.empty((m, 4))
+    slip_angle_kernel(vxt.reshape(-1), vyt.reshape(-1), 0.5, sa.reshape(-1))
+    col = P.col
+    _put(Y, col, 0, t, k0)
+    _put(Y, col, 1, v[:, 0].copy(), k0)
+    _put(Y, col, 2, v[:, 1].copy(), k0)
+    j = 3
+    for block in (vx_o, vy_o, vxt, vyt, sr, sa, fx, fy, fz, mu_x, mu_y, sig_fx, sig_fy):
+        _put4(Y, col, j, block, k0)
+        j += 4
+    _put(Y, col, j, roll, k0)
+    _put(Y, col, j + 1, pitch, k0)
+    _put(Y, col, j + 2, bias[:, 0].copy(), k0)
+    _put(Y, col, j + 3, c_y, k0)
+    _put(Y, col, j + 4, np.ones(m), k0)  # radius_scale: no gnss_speed on this path
+    _put(Y, col, j + 5, np.zeros(m), k0)  # gnss_latency
+    _post(P.post, S.post, x, t, v, sig, c_y, bias[:, 3].copy(), fx, fy, fz, sig_fx, sig_fy,
+          sr, sa, vxt, vyt, delta, omega, Y, col, k0)
+
+
+@njit(**_JIT)
+def _fused(P: Params, S: State, t: np.ndarray, omega: np.ndarray, torque: np.ndarray,
+           delta: np.ndarray, r: np.ndarray, w_mean: np.ndarray, fxa: np.ndarray,
+           fya: np.ndarray, fy_sd: np.ndarray, mu_x: np.ndarray, axle: np.ndarray,
+           v_ref: np.ndarray, sig_ref: np.ndarray, bias_ref: np.ndarray,
+           same: bool) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The fused filter of a block (Pipeline._advance's "fused"): the corner KF, its axle
+    fusion against the reference speed, and the second reference filter that takes the
+    fused corner v_x while ≥ 3 corners are in high slip. Returns its (v, σ, bias), the
+    reference filter's while the fused one has not yet diverged from it."""
+    vp = P.velocity
+    vs = S.velocity
+    cp = vp.corner
+    cs = vs.corner
+    xw, yw = P.force.xw, P.force.yw
+    radius = P.force.radius
+    m = t.shape[0]
+    yaw_acc = np.empty(m)
+    yaw_acceleration_kernel(t, r, vs.prev, yaw_acc)  # prev[:2]: the previous (t, r)
+    axc = np.empty(m)
+    ayc = np.empty(m)
+    for i in range(m):
+        axc[i] = fxa[i] - bias_ref[i, 0]
+        ayc[i] = fya[i] - bias_ref[i, 1]
+    ax_i, ay_i = corner_acc_kernel(axc, ayc, r, yaw_acc, xw, yw)
+    a_xt = np.empty((m, 4))
+    a_yt = np.empty((m, 4))
+    rotate_kernel(ax_i.reshape(-1), ay_i.reshape(-1), delta.reshape(-1), 1.0, a_xt.reshape(-1),
+                  a_yt.reshape(-1))
+    vg = radius * w_mean
+    vyr = v_ref[:, 1].copy()
+    vx_i, vy_i = transport_kernel(vg, vyr, r, xw, yw, 1.0)
+    vxt_g = np.empty((m, 4))
+    vyt_in = np.empty((m, 4))
+    rotate_kernel(vx_i.reshape(-1), vy_i.reshape(-1), delta.reshape(-1), 1.0,
+                  vxt_g.reshape(-1), vyt_in.reshape(-1))
+    hint = np.zeros((m, 4), dtype=np.bool_)
+    k_vxt = np.empty((m, 4))
+    k_sig = np.empty((m, 4))
+    k_high = np.empty((m, 4), dtype=np.bool_)
+    k_vr = np.empty((m, 4))
+    k_z = np.empty((m, 4))
+    k_zd = np.empty((m, 4))
+    lugre_kf_kernel(t, omega, mu_x, a_xt, a_yt, delta, r, hint, vyt_in, radius,
+                    cp.kappa, cp.sigma0, cp.sigma1, cp.sigma2, xw, cp.q, cp.r, cp.q_high,
+                    cp.r_high, cp.p0, cp.step_ref, cp.lam_u, cp.lam_l, cp.beta_e,
+                    cp.wdot_th, cp.min_speed, cp.mu_release, cp.release_window,
+                    cp.use_ukf, cp.wm, cp.wc, cp.tau, cs.x, cs.P, cs.hold, cs.acc,
+                    cs.stats, cs.w_buf, cs.t_buf, cs.ring, k_vxt, k_sig, k_high, k_vr,
+                    k_z, k_zd)
+    # Fusion (Pipeline._fuse_corners): slip against the reference speed.
+    vxr_i, vyr_i = transport_kernel(v_ref[:, 0].copy(), vyr, r, xw, yw, 1.0)
+    vxt_r = np.empty((m, 4))
+    vyt_r = np.empty((m, 4))
+    rotate_kernel(vxr_i.reshape(-1), vyr_i.reshape(-1), delta.reshape(-1), 1.0,
+                  vxt_r.reshape(-1), vyt_r.reshape(-1))
+    slip = np.empty((m, 4))
+    slip_ratio_kernel(omega.reshape(-1), vxt_r.reshape(-1), radius, 0.1, slip.reshape(-1))
+    vx_b = np.empty((m, 4))
+    vy_b = np.empty((m, 4))
+    rotate_kernel(k_vxt.reshape(-1), np.zeros(4 * m), delta.reshape(-1), -1.0,
+                  vx_b.reshape(-1), vy_b.reshape(-1))
+    phi = np.empty((m, 4))
+    for i in range(m):
+        for c in range(4):
+            phi[i, c] = vx_b[i, c] + r[i] * yw[c]
+    vx_f = np.empty(m)
+    fw = np.empty((m, 4))
+    if vp.adaptive:
+        adaptive_axle_kernel(phi, slip, vp.w_s, vp.w_range, vp.rho, vp.threshold, vx_f, fw)
+    else:
+        fixed_axle_kernel(phi, vp.eta_front, vx_f, fw)
+    extra = np.full((m, 1), np.nan)
+    var = np.full((m, 1), np.nan)
+    any_slip = False
+    for i in range(m):
+        n_high = 0
+        for c in range(4):
+            n_high += 1 if k_high[i, c] else 0
+        if n_high >= 3:
+            any_slip = True
+            extra[i, 0] = vx_f[i]
+            var[i, 0] = vp.reference.sigma_corner_slip ** 2
+    if same and not any_slip:
+        return v_ref, sig_ref, bias_ref
+    vs.prev[2] = 0.0
+    v = np.empty((m, 2))
+    sig = np.empty((m, 2))
+    bias = np.empty((m, 4))
+    trust = np.empty((m, 4))
+    _reference_rows(vp.reference, vs.fused, 0, m, t, omega, torque, mu_x, axle, fxa, fya,
+                    fy_sd, r, delta, extra, var, v, sig, bias, trust)
+    return v, sig, bias
+
+
+@njit(**_JIT)
+def _post(p: PostParams, st: PostState, x: np.ndarray, t: np.ndarray, v: np.ndarray,
+          sig: np.ndarray, c_y: np.ndarray, vy_unverified: np.ndarray, fx: np.ndarray,
+          fy: np.ndarray, fz: np.ndarray, sig_fx: np.ndarray, sig_fy: np.ndarray,
+          sr: np.ndarray, sa: np.ndarray, vxt: np.ndarray, vyt: np.ndarray, delta: np.ndarray,
+          omega: np.ndarray, Y: np.ndarray, col: np.ndarray, k0: int) -> None:
+    """Friction, validity and uncertainty of a block (their per-sample steps) and its health
+    flags, into Y (quantities from :data:`_R_MU` on). ``v``, ``sig`` (m, 2) the filter's
+    velocity and σ, m/s; ``vy_unverified`` the time since the reference filter last accepted
+    a v_y pseudo-measurement, s; per-corner arrays (m, 4)."""
+    m = t.shape[0]
+    if np.isnan(st.t_start[0]):
+        st.t_start[0] = t[0]
+    mu, smu, ex = np.empty(4), np.empty(4), np.empty(4)
+    valid, reason = np.empty(_N_GROUPS), np.empty(_N_GROUPS)
+    sigma = np.empty(N_SIGMA)
+    fz_i = np.empty(4)
+    for i in range(m):
+        k = k0 + i
+        vx = v[i, 0]
+        s_a = max(sig[i, 1], p.friction.sigma_vy_floor) / max(abs(vx), 1.0)
+        s_a = s_a if np.isfinite(s_a) else 0.0
+        friction_step(p.friction, st.friction, t[i], fx[i], fy[i], fz[i], sig_fx[i], sig_fy[i],
+                      sr[i], sa[i], s_a, c_y[i], mu, smu, ex)
+        for c in range(4):
+            for j, value in ((_R_MU + 3 * c, mu[c]), (_R_MU + 3 * c + 1, smu[c]),
+                             (_R_MU + 3 * c + 2, ex[c])):
+                if col[j] >= 0:
+                    Y[col[j], k] = value
+        validity_step(p.validity, t[i], st.t_start[0], vx, sr[i], sa[i], delta[i, 0],
+                      delta[i, 1], x[i, X_AY], vy_unverified[i], x[i, X_HELD] != 0.0, valid,
+                      reason)
+        for g in range(_N_GROUPS):
+            j = _R_MU + 12 + 2 * g
+            if col[j] >= 0:
+                Y[col[j], k] = valid[g]
+            if col[j + 1] >= 0:
+                Y[col[j + 1], k] = reason[g]
+        for c in range(7):
+            if col[_R_HEALTH + c] >= 0:
+                Y[col[_R_HEALTH + c], k] = x[i, X_HEALTH_OMEGA + c]
+        for c in range(4):
+            fz_i[c] = fz[i, c]
+        uncertainty_step(p.uncertainty, st.uncertainty, t[i], vx, sig[i, 0], sig[i, 1],
+                         delta[i], omega[i], x[i, X_AX], x[i, X_AY], fz_i, vxt[i], vyt[i],
+                         sr[i], c_y[i], sigma)
+        for c in range(N_SIGMA):
+            if col[_R_SIGMA + c] >= 0:
+                Y[col[_R_SIGMA + c], k] = sigma[c]
+
+
+def covers(pipe: Pipeline) -> bool:
+    """Whether :func:`pipeline_rows` composes ``pipe``'s configuration (see the module)."""
+    cfg = pipe.config
+    return (cfg.force == "ukf" and cfg.velocity in ("fused", "reference")
+            and cfg.fusion in ("axle", "adaptive")
+            and (cfg.velocity != "fused" or isinstance(getattr(pipe.corner, "params", None),
+                                                       KFParams)))
+
+
+def columns(names: tuple[str, ...]) -> np.ndarray:
+    """Params.col for a Y whose rows are ``names``: each quantity of :data:`ROW_NAMES`'s
+    row in Y, −1 where ``names`` lacks it."""
+    at = {name: j for j, name in enumerate(names)}
+    return np.array([at.get(name, -1) for name in ROW_NAMES], dtype=np.int64)
+
+
+def build(pipe: Pipeline, names: tuple[str, ...]) -> tuple[Params, State]:
+    """The parameter and state trees of ``pipe`` as it is now (its state arrays shared, not
+    copied), writing the quantities of :data:`ROW_NAMES` to Y's rows in the order of
+    ``names``. Only for a configuration :func:`covers` accepts."""
+    cfg = pipe.config
+    fe = pipe.force
+    veh = pipe.vehicle
+    b = veh.body
+    lp = fe.config.lateral
+    lon = fe._lon
+    force_p = ForceParams(
+        float(b.wheel_radius), float(fe.rolling_resistance * b.wheel_radius),
+        float(fe._drag_coef), float(b.yaw_inertia), float(lp.load_exponent),
+        float(lp.slip_scale), normal_load_params(veh), fe.config.normal == "dynamic",
+        fe._att_prm, lon.kernel_params, lon._wm, lon._wc, float(lon._tau), fe._xw, fe._yw,
+        fe._q_lat, fe._r_lat, fe._w4, fe._c4, float(fe._tau4))
+    force_s = ForceState(fe._att, lon._x, lon._P, lon._hist_t, lon._hist_w, fe._lat_x,
+                         fe._lat_P, fe._lat_state)
+    fused = cfg.velocity == "fused"
+    corner = pipe.corner
+    if fused:
+        assert corner is not None and isinstance(corner.params, KFParams)
+        tire = veh.tire
+        kp = corner.params
+        hs = corner._slip
+        corner_p = CornerParams(
+            tire.kappa_x, tire.sigma0_x, tire.sigma1_x, tire.sigma2_x, kp.r, kp.r_high,
+            kp.step_ref, hs.lambda_upper, hs.lambda_lower, hs.beta_e, hs.omega_dot_threshold,
+            hs.min_speed, hs.mu_release, np.array(kp.q), np.array(kp.q_high), np.array(kp.p0),
+            int(hs.release_window), corner.method == "lugre_ukf", corner._wm, corner._wc,
+            float(corner._tau))
+        corner_s = CornerState(corner._x, corner._P, corner._hold, corner._acc_buf,
+                               corner._stats, corner._w_buf, corner._t_buf, corner._ring)
+    else:  # never read: typed placeholders
+        z1, z2 = np.zeros(1), np.zeros((1, 1))
+        corner_p = CornerParams(0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0,
+                                z1, z1, z1, 0, False, z1, z1, 0.0)
+        corner_s = CornerState(z2, np.zeros((1, 1, 1)), z2, z1, z1, z2, z1,
+                               np.zeros(1, dtype=np.int64))
+    fp = cfg.fusion_params
+    ap = fp.adaptive
+    velocity_p = VelocityParams(pipe._stiff_prm, pipe.reference.kernel_params, fused, corner_p,
+                                cfg.fusion == "adaptive", float(fp.eta_front), float(ap.w_s),
+                                float(ap.w_range), float(ap.rho), float(ap.threshold))
+    prev = np.array([pipe._prev[0], pipe._prev[1], 1.0 if pipe._fused_is_reference else 0.0])
+    velocity_s = VelocityState(pipe._stiff_state, pipe.reference.state, pipe.fused.state, prev,
+                               corner_s)
+    post_p = PostParams(pipe._friction_prm, pipe._validity_prm, pipe._unc_prm)
+    post_s = PostState(pipe._friction_state, pipe._unc_state, pipe._t_start)
+    return (Params(force_p, velocity_p, post_p, columns(names)),
+            State(force_s, velocity_s, post_s))
