@@ -205,6 +205,7 @@ def road_specific_force(ax: np.ndarray, ay: np.ndarray, az: np.ndarray, roll: np
     return f_x, f_y, f_z
 
 
+@njit(cache=True, error_model="numpy")
 def level_road_az(ax: np.ndarray, ay: np.ndarray, roll: np.ndarray,
                   pitch: np.ndarray) -> np.ndarray:
     """Body-frame a_z (m/s²) for a log without ``az``: the value whose road-normal component is g.

@@ -160,7 +160,7 @@ class Pipeline:
         self._stiff_state = new_stiffness_state()
         self._radius_prm = radius_params(self.config.radius, b.wheel_radius)
         self._radius_state = new_radius_state()
-        self._t_gnss = np.nan  # time of the previous sample, for the GNSS fixes' weight
+        self._t_gnss = np.array([np.nan])  # the previous sample's time (a fix's weight)
         self._friction_prm = friction_params(self.config.friction,
                                              corner_kx(vehicle, self.config.friction))
         self._friction_state = new_friction_state()
@@ -215,7 +215,7 @@ class Pipeline:
         # health and "input faulty" rows of the block _advance is working on (run and step)
         self._chunk_faulty: np.ndarray | None = None
         self._chunk_health: np.ndarray | None = None
-        self._step_rates: tuple[bool, bool] | None = None  # rate channels last noted
+        self._step_rates: tuple[bool, ...] | None = None  # optional channels last noted
 
     def reset(self) -> None:
         """Forget every stage's state."""
@@ -236,7 +236,7 @@ class Pipeline:
         self._unc_state = new_uncertainty_state()
         self._t_start = np.array([np.nan])  # first sample time (validity flags' convergence)
         self._held_now = False  # step() held a dropped input in this sample
-        self._t_gnss = np.nan
+        self._t_gnss = np.array([np.nan])
         self._fused_is_reference = True
         self._rows = None
         self._step_rates = None
@@ -354,8 +354,8 @@ class Pipeline:
         # filter gives every extra CG-speed measurement (per-sample T_s), so its weight does
         # not depend on the log's sample rate.
         p_ref = self.config.reference
-        dt = np.diff(u.t, prepend=self._t_gnss)
-        self._t_gnss = float(u.t[-1])
+        dt = np.diff(u.t, prepend=self._t_gnss[0])
+        self._t_gnss[0] = u.t[-1]
         inflate = np.maximum(p_ref.tau_wheel / np.where(dt > 0, dt, np.inf), 1.0)
         var = np.where(gnss, p_ref.sigma_gnss**2 / inflate, np.nan)[:, None]
         mu_x_c = np.ascontiguousarray(mu_x)
@@ -473,9 +473,8 @@ class Pipeline:
 
     def _compiled_rows(self, u: Inputs) -> bool:
         """Whether :func:`~vestim.pipeline.rows.pipeline_rows` covers this configuration and
-        these inputs (every sensor it reads measured, no ``gnss_speed`` fix)."""
-        return (rows_kernel.covers(self) and u.omega_measured and u.torque_measured
-                and u.ax_measured and u.az_measured and not np.isfinite(u.gnss_speed).any())
+        these inputs (wheel speeds and torques measured)."""
+        return rows_kernel.covers(self) and u.omega_measured and u.torque_measured
 
     def _run_rows(self, u: Inputs, faulty: np.ndarray, health: np.ndarray,
                   imu_health: np.ndarray, spans: list[tuple[int, int]], restarts: list[int],
@@ -490,11 +489,12 @@ class Pipeline:
         block[np.setdiff1d(np.arange(len(names)), written[written >= 0])] = np.nan
         X = np.empty((max(b - a for a, b in spans), rows_kernel.N_X))
         inputs = (u.t, u.omega, u.torque, u.ax, u.ay, u.az, u.yaw_rate, u.roll_rate,
-                  u.pitch_rate, u.delta[:, :2], faulty, health, imu_health)
+                  u.pitch_rate, u.delta[:, :2], faulty, health, imu_health, u.gnss_speed)
+        sensors = rows_kernel.Sensors(ax=u.ax_measured, az=u.az_measured)
         for a, stop in spans:
             if a in restarts:  # the first sample after a gap: start again
                 self.reset()
-            self._trees(names)
+            self._trees(names, sensors)
             j = 0
             for values in inputs:
                 width = 1 if values.ndim == 1 else values.shape[1]
@@ -762,7 +762,7 @@ class Pipeline:
                             progress(min((done + stop) / total, 1.0))
 
                     frame = self._run_rows(u, faulty, health, imu_health, spans, restarts,
-                                           tuple(names) or rows_kernel.ROW_NAMES, on_span)
+                                           tuple(names) or rows_kernel.OUTPUT_COLUMNS, on_span)
                 else:
                     frame = frame_from_chunks((advance(a, e) for a, e in spans), n, names)
                 names = list(frame.columns)
@@ -808,11 +808,12 @@ class Pipeline:
         cols = columns_from_groups(self._groups(u.t, self._advance(u)))
         return {k: float(v[0]) for k, v in cols.items()}
 
-    def _trees(self, names: tuple[str, ...]) -> None:
+    def _trees(self, names: tuple[str, ...], sensors: rows_kernel.Sensors) -> None:
         """Make :func:`~vestim.pipeline.rows.pipeline_rows`' parameter and state trees once
-        (until a reset or the general path), writing Y's rows in the order of ``names``."""
-        if self._rows is None:
-            self._rows = rows_kernel.build(self, names)
+        (until a reset or the general path), for a log with ``sensors``, writing Y's rows in
+        the order of ``names``."""
+        if self._rows is None or sensors != self._rows[0].sensors:
+            self._rows = rows_kernel.build(self, names, sensors)
             self._rows_names = names
         elif names is not self._rows_names:
             P, S = self._rows
@@ -835,41 +836,53 @@ class Pipeline:
 
     def _row_step(self, sample: Mapping[str, float]) -> dict[str, float] | None:
         """One sample through :func:`~vestim.pipeline.rows.pipeline_rows`, or None where it
-        does not cover the configuration or the sample (no torques, ``az`` or ``ax``, or a
-        ``gnss_speed``: the general path)."""
-        if "gnss_speed" in sample or not rows_kernel.covers(self):
+        does not cover the configuration or the sample (no wheel speeds, torques or per-wheel
+        steering: the general path)."""
+        if not rows_kernel.covers(self):
             return None
         x = self._x1[0]
+        get = sample.get
         try:
-            for j, key in enumerate(rows_kernel.X_CHANNELS[:rows_kernel.X_P]):
+            for j, key in enumerate(_ROW_REQUIRED):
                 x[j] = float(sample[key])
-        except KeyError:
-            return None
-        x[rows_kernel.X_P] = float(sample.get("roll_rate", np.nan))
-        x[rows_kernel.X_Q] = float(sample.get("pitch_rate", np.nan))
-        if "delta_fl" in sample and "delta_fr" in sample:
             x[rows_kernel.X_DELTA] = float(sample["delta_fl"])
             x[rows_kernel.X_DELTA + 1] = float(sample["delta_fr"])
-        else:
+        except KeyError:
             return None
+        nan = math.nan
+        x[rows_kernel.X_AX] = float(get("ax", nan))
+        x[rows_kernel.X_AY] = float(get("ay", 0.0))
+        x[rows_kernel.X_AZ] = float(get("az", nan))
+        x[rows_kernel.X_R] = float(get("yaw_rate", 0.0))
+        x[rows_kernel.X_P] = float(get("roll_rate", nan))
+        x[rows_kernel.X_Q] = float(get("pitch_rate", nan))
+        x[rows_kernel.X_GNSS] = float(get("gnss_speed", nan))
         x[rows_kernel.X_HELD] = 1.0 if self._held_now else 0.0
         x[rows_kernel.X_HEALTH_OMEGA:rows_kernel.X_HEALTH_IMU] = (
             _ONES if self._chunk_health is None else self._health_buf[2][0])
-        x[rows_kernel.X_HEALTH_IMU:] = (_ONES[:3] if self._chunk_imu is None
-                                        else self._imu_buf[3][0])
-        self._trees(rows_kernel.ROW_NAMES)
+        x[rows_kernel.X_HEALTH_IMU:rows_kernel.X_GNSS] = (
+            _ONES[:3] if self._chunk_imu is None else self._imu_buf[3][0])
+        present = ("ax" in sample, "az" in sample, "roll_rate" in sample,
+                   "pitch_rate" in sample)
+        self._trees(rows_kernel.OUTPUT_COLUMNS, _SENSORS[present[:2]])
         self._call_rows(self._x1, self._y1, 0, 1)
-        rates = ("roll_rate" in sample, "pitch_rate" in sample)
-        if rates != self._step_rates:
-            self._step_rates = rates
+        if present != self._step_rates:
+            self._step_rates = present
             self.force.note_sources({
-                "torque_source": "measured", "az_source": "measured",
-                "roll_source": "rate" if rates[0] else "quasi_static",
-                "pitch_source": "rate" if rates[1] else "quasi_static",
-                "ax_source": "measured", "speed_source": "wheel_speeds",
-                "outputs_unavailable": "none"})
-        return dict(zip(rows_kernel.ROW_NAMES, self._y1[:, 0].tolist(), strict=True))
+                "torque_source": "measured", "az_source": "measured" if present[1] else "level_road",
+                "roll_source": "rate" if present[2] else "quasi_static",
+                "pitch_source": "rate" if present[3] else "quasi_static",
+                "ax_source": "measured" if present[0] else "wheel_speeds",
+                "speed_source": "wheel_speeds", "outputs_unavailable": "none"})
+        return dict(zip(rows_kernel.OUTPUT_COLUMNS, self._y1[:, 0].tolist(), strict=True))
 
+
+_ROW_REQUIRED = ("t", *(f"omega_{c}" for c in CORNERS), *(f"torque_{c}" for c in CORNERS))
+"""The channels a sample needs for :meth:`Pipeline._row_step` (and per-wheel steering)."""
+
+_SENSORS = {(ax, az): rows_kernel.Sensors(ax=ax, az=az) for ax in (False, True)
+            for az in (False, True)}
+"""The :class:`~vestim.pipeline.rows.Sensors` of a sample, made once."""
 
 _HELD = {False: np.array([False]), True: np.array([True])}
 """step()'s "input held" row of the block, by value (read only)."""

@@ -12,9 +12,10 @@ over the rows of a chunk and :meth:`Pipeline.step` over one row, so the two give
 numbers by construction.
 
 It covers force ``ukf`` with normal loads ``dynamic`` or ``static``, velocity ``fused`` or
-``reference``, fusion ``axle`` or ``adaptive``, and logs with wheel speeds, wheel torques,
-``ax``, ``az`` and no ``gnss_speed`` (:func:`covers`); the other configurations still go
-through the stage-by-stage path of :meth:`Pipeline._advance`. The per-sample equations are
+``reference``, fusion ``axle`` or ``adaptive`` (:func:`covers`), and logs with wheel speeds
+and wheel torques, with or without ``ax`` (then from the wheel speeds), ``az`` (then the
+level-road value) and ``gnss_speed``; the other configurations still go through the
+stage-by-stage path of :meth:`Pipeline._advance`. The per-sample equations are
 those cited in :mod:`vestim.estimators.force.estimator`, :mod:`vestim.estimators.force.normal`
 and :mod:`vestim.pipeline`.
 """
@@ -26,7 +27,7 @@ from typing import TYPE_CHECKING, Any, NamedTuple
 import numpy as np
 from numba import njit
 
-from vestim.estimators.force.estimator import normalised
+from vestim.estimators.force.estimator import AX_TAU, normalised, wheel_reference_speed
 from vestim.estimators.force.lateral import lateral_kernel, split_weights
 from vestim.estimators.force.longitudinal import UKFKernelParams, ukf_kernel
 from vestim.estimators.force.normal import (
@@ -49,6 +50,8 @@ from vestim.estimators.validity import GROUPS as VALIDITY_GROUPS
 from vestim.estimators.validity import ValidityKernelParams, validity_step
 from vestim.estimators.velocity.lugre_kf import KFParams, lugre_kf_kernel
 from vestim.estimators.velocity.reference import (
+    RadiusKernelParams,
+    RadiusState,
     ReferenceKernelParams,
     ReferenceState,
     StiffnessKernelParams,
@@ -56,10 +59,12 @@ from vestim.estimators.velocity.reference import (
     _reference_rows,
     _stiffness_rows,
     copy_reference_state,
+    gnss_calibration,
 )
 from vestim.models.chassis import torque_less_rolling_resistance
 from vestim.models.kinematics import (
     corner_acc_kernel,
+    level_road_az,
     road_specific_force,
     rotate_kernel,
     slip_angle_kernel,
@@ -77,13 +82,14 @@ CORNER_KEYS = ("fl", "fr", "rl", "rr")
 
 # --- the input row X[k] -------------------------------------------------------------------
 X_T, X_OMEGA, X_TORQUE, X_AX, X_AY, X_AZ, X_R, X_P, X_Q, X_DELTA = 0, 1, 5, 9, 10, 11, 12, 13, 14, 15
-X_HELD, X_HEALTH_OMEGA, X_HEALTH_IMU = 17, 18, 22
-N_X = 25
+X_HELD, X_HEALTH_OMEGA, X_HEALTH_IMU, X_GNSS = 17, 18, 22, 25
+N_X = 26
 X_CHANNELS: tuple[str, ...] = (
     "t", *(f"omega_{c}" for c in CORNER_KEYS), *(f"torque_{c}" for c in CORNER_KEYS), "ax",
     "ay", "az", "yaw_rate", "roll_rate", "pitch_rate", "delta_fl", "delta_fr")
 """The log channels of X's first columns, in order (then: an input was held (1/0), the
-wheel-speed health (4) and the IMU health (3), 1.0 healthy)."""
+wheel-speed health (4) and the IMU health (3), 1.0 healthy, and ``gnss_speed``, NaN between
+fixes). A channel the :class:`Sensors` say is not measured is not read."""
 
 # --- the output row, in the kernel's order (Params.col places each in Y) -------------------
 _PER_CORNER = ("vx", "vy", "vxt", "vyt", "slip_ratio", "slip_angle", "fx", "fy", "fz", "mu_x",
@@ -97,11 +103,38 @@ ROW_NAMES: tuple[str, ...] = (
     *(f"health_omega_{c}" for c in CORNER_KEYS), "health_ax", "health_ay", "health_yaw_rate",
     *SIGMA_NAMES)
 """Every quantity one row computes, in the order the kernel writes them."""
+
+
+def _corners(*quantities: str) -> list[str]:
+    return [f"{q}_{c}" for q in quantities for c in CORNER_KEYS]
+
+
+OUTPUT_COLUMNS: tuple[str, ...] = (
+    "t", "vx", "vy", "sigma_vx", "sigma_vy",
+    *_corners("sigma_vx", "sigma_vy", "sigma_vxt", "sigma_vyt", "sigma_slip_angle",
+              "sigma_slip_ratio", "sigma_fz"), "sigma_roll", "sigma_pitch",
+    *_corners("vx", "vy", "vxt", "vyt", "slip_ratio", "slip_angle", "fx", "fy", "fz", "mu_x",
+              "mu_y", "sigma_fx", "sigma_fy"), "roll", "pitch",
+    "bias_ax", "cornering_stiffness", "radius_scale", "gnss_latency",
+    *_corners("mu", "sigma_mu"), *(f"mu_{c}_excited" for c in CORNER_KEYS),
+    *(n for g in VALIDITY_GROUPS for n in (f"valid_{g}", f"reason_{g}")),
+    *_corners("health_omega"), "health_ax", "health_ay", "health_yaw_rate")
+"""The output columns, in the order of the estimate's frame (the order every configuration's
+output follows: :meth:`Pipeline._groups`); the same names as :data:`ROW_NAMES`."""
+assert sorted(OUTPUT_COLUMNS) == sorted(ROW_NAMES)
 _R_MU = 3 + 4 * len(_PER_CORNER) + 6
 _N_GROUPS = len(VALIDITY_GROUPS)
 _R_HEALTH = _R_MU + 12 + 2 * _N_GROUPS
 _R_SIGMA = _R_HEALTH + 7
 N_ROW = _R_SIGMA + N_SIGMA
+
+
+class Sensors(NamedTuple):
+    """Which of the optional channels the log measures (the others are derived: ``ax`` from
+    the wheel speeds, ``az`` for a level road)."""
+
+    ax: bool
+    az: bool
 
 
 class ForceParams(NamedTuple):
@@ -142,6 +175,7 @@ class ForceState(NamedTuple):
     lat_x: np.ndarray
     lat_cov: np.ndarray
     lat_state: np.ndarray
+    ax_state: np.ndarray  # the wheel-speed a_x's filter (logs without ax)
 
 
 class CornerParams(NamedTuple):
@@ -191,7 +225,10 @@ class VelocityParams(NamedTuple):
     corners slip), the corner observer and the axle fusion (``adaptive``, else fixed)."""
 
     stiffness: StiffnessKernelParams
+    radius: RadiusKernelParams
     reference: ReferenceKernelParams
+    sigma_gnss: float  # a fix's σ, m/s
+    tau_wheel: float  # the filter's inflation time of an extra speed measurement, s
     fused: bool
     corner: CornerParams
     adaptive: bool
@@ -204,9 +241,12 @@ class VelocityParams(NamedTuple):
 
 class VelocityState(NamedTuple):
     """The velocity stage's states: ``prev`` = [t, yaw rate] of the previous sample (ṙ) and
-    whether the fused filter is still the plain one (1/0)."""
+    whether the fused filter is still the plain one (1/0); ``t_gnss`` (1,) the previous
+    sample's time (a fix's weight), s."""
 
     stiffness: StiffnessState
+    radius: RadiusState
+    t_gnss: np.ndarray
     reference: ReferenceState
     fused: ReferenceState
     prev: np.ndarray
@@ -234,6 +274,7 @@ class Params(NamedTuple):
     """The whole pipeline's parameters; ``col`` (N_ROW,) places each quantity of
     :data:`ROW_NAMES` in Y (−1: not written)."""
 
+    sensors: Sensors
     force: ForceParams
     velocity: VelocityParams
     post: PostParams
@@ -297,9 +338,7 @@ def _block(P: Params, S: State, x: np.ndarray, Y: np.ndarray, k0: int) -> None:
     t = x[:, X_T].copy()
     omega = x[:, X_OMEGA:X_OMEGA + 4].copy()
     torque = x[:, X_TORQUE:X_TORQUE + 4].copy()
-    ax = x[:, X_AX].copy()
     ay = x[:, X_AY].copy()
-    az = x[:, X_AZ].copy()
     r = x[:, X_R].copy()
     p_rate = x[:, X_P].copy()
     q_rate = x[:, X_Q].copy()
@@ -308,16 +347,27 @@ def _block(P: Params, S: State, x: np.ndarray, Y: np.ndarray, k0: int) -> None:
     delta[:, 1] = x[:, X_DELTA + 1]
     radius = fp.radius
     xw, yw = fp.xw, fp.yw
+    att = fp.attitude
     # --- force stage (ForceEstimator.advance) ---
+    if P.sensors.ax:
+        ax = x[:, X_AX].copy()
+    else:  # from the wheel speeds (ForceEstimator._speed_inputs)
+        ax = np.empty(m)
+        wheel_reference_speed(t, omega, r, yw, radius, att.undriven_axle, AX_TAU[0], AX_TAU[1],
+                              fs.ax_state, ax)
     roll = np.empty(m)
     pitch = np.empty(m)
     roll_acc = np.empty(m)
     pitch_acc = np.empty(m)
     fy_sd = np.empty(m)
-    att = fp.attitude
     attitude_kernel(t, ax, ay, p_rate, q_rate, r, omega, att, fs.attitude, roll, pitch,
                     roll_acc, pitch_acc, fy_sd)
-    fxa, fya, fza = road_specific_force(ax, ay, az, att.gravity * roll, att.gravity * pitch)
+    # the attitude's gravity as the accelerometers read it (none in an INS's output)
+    g_roll, g_pitch = att.gravity * roll, att.gravity * pitch
+    az = x[:, X_AZ].copy() if P.sensors.az else level_road_az(ax, ay, g_roll, g_pitch)
+    fxa, fya, fza = road_specific_force(ax, ay, az, g_roll, g_pitch)
+    if not P.sensors.ax:  # a speed's derivative is already the road-plane acceleration
+        fxa = ax.copy()
     fz = normal_loads_kernel(fxa, fya, fza, roll, pitch, p_rate, q_rate, roll_acc, pitch_acc,
                              fp.normal, fp.dynamic)
     teff = torque_less_rolling_resistance(torque, omega, fz, fp.rolling_moment)
@@ -326,12 +376,11 @@ def _block(P: Params, S: State, x: np.ndarray, Y: np.ndarray, k0: int) -> None:
     high = np.empty((m, 4), dtype=np.bool_)
     ukf_kernel(t, omega, teff, fp.lon, fp.lon_wm, fp.lon_wc, fp.lon_tau, fs.lon_x, fs.lon_cov,
                fs.lon_hist_t, fs.lon_hist_w, fx, sig_fx, high)
-    w_mean = np.empty(m)
     drag = np.empty(m)
     speed = np.empty(m)
     for i in range(m):
-        w_mean[i] = 0.25 * (omega[i, 0] + omega[i, 1] + omega[i, 2] + omega[i, 3])
-        drag[i] = fp.drag_coef * (radius * w_mean[i]) ** 2
+        w_mean = 0.25 * (omega[i, 0] + omega[i, 1] + omega[i, 2] + omega[i, 3])
+        drag[i] = fp.drag_coef * (radius * w_mean) ** 2
         speed[i] = radius * np.median(omega[i])
     weights = split_weights(fz, omega, torque, r, radius, yw, fp.load_exponent, fp.slip_scale)
     fy = np.empty((m, 4))
@@ -345,7 +394,31 @@ def _block(P: Params, S: State, x: np.ndarray, Y: np.ndarray, k0: int) -> None:
     axle = np.empty((m, 2))
     c_y = np.empty(m)
     _stiffness_rows(vp.stiffness, vs.stiffness, 0, m, t, omega, r, delta, fy, fz, axle, c_y)
-    none_v = np.full((m, 0), np.nan)
+    # The wheel speeds at the effective radius that the GNSS speed shows, and the fixes
+    # brought forward by the receiver's latency (scale 1 and no fix without gnss_speed).
+    scale = np.empty(m)
+    latency = np.empty(m)
+    gnss = np.empty(m)
+    extra = np.empty((m, 2))
+    extra_var = np.empty((m, 2))
+    gnss_calibration(vp.radius, vs.radius, t, omega, x[:, X_GNSS].copy(), scale, latency, gnss)
+    omega_v = omega
+    for i in range(m):
+        if scale[i] != 1.0:
+            omega_v = omega * scale.reshape(m, 1)
+            break
+    # A fix's error is white at the receiver's rate: undo the τ_wheel/T_s inflation the
+    # filter gives every extra CG-speed measurement, so its weight does not depend on the
+    # log's sample rate.
+    t_prev = vs.t_gnss[0]
+    var_gnss = vp.sigma_gnss ** 2
+    for i in range(m):
+        dt = t[i] - t_prev
+        t_prev = t[i]
+        inflate = max(vp.tau_wheel / (dt if dt > 0 else np.inf), 1.0)
+        extra[i, 0] = gnss[i]
+        extra_var[i, 0] = var_gnss / inflate if np.isfinite(gnss[i]) else np.nan
+    vs.t_gnss[0] = t_prev
     v_ref = np.empty((m, 2))
     sig_ref = np.empty((m, 2))
     bias_ref = np.empty((m, 4))
@@ -356,14 +429,15 @@ def _block(P: Params, S: State, x: np.ndarray, Y: np.ndarray, k0: int) -> None:
         # While it is the plain filter the fused filter's state is not used: it holds the
         # plain filter's state before this block, the start of its first own step.
         copy_reference_state(vs.fused, vs.reference)
-    _reference_rows(vp.reference, vs.reference, 0, m, t, omega, torque, mu_x, axle, fxa, fya,
-                    fy_sd, r, delta, none_v, none_v, v_ref, sig_ref, bias_ref, trust)
+    _reference_rows(vp.reference, vs.reference, 0, m, t, omega_v, torque, mu_x, axle, fxa,
+                    fya, fy_sd, r, delta, extra[:, :1], extra_var[:, :1], v_ref, sig_ref,
+                    bias_ref, trust)
     v = v_ref
     sig = sig_ref
     bias = bias_ref
     if vp.fused:
-        v, sig, bias = _fused(P, S, t, omega, torque, delta, r, w_mean, fxa, fya, fy_sd, mu_x,
-                              axle, v_ref, sig_ref, bias_ref, same)
+        v, sig, bias = _fused(P, S, t, omega_v, torque, delta, r, fxa, fya, fy_sd, mu_x, axle,
+                              extra, extra_var, v_ref, sig_ref, bias_ref, same)
     # --- the corners' kinematics ---
     vx_o, vy_o = transport_kernel(v[:, 0].copy(), v[:, 1].copy(), r, xw, yw, 1.0)
     vxt = np.empty((m, 4))
@@ -371,7 +445,7 @@ def _block(P: Params, S: State, x: np.ndarray, Y: np.ndarray, k0: int) -> None:
     rotate_kernel(vx_o.reshape(-1), vy_o.reshape(-1), delta.reshape(-1), 1.0, vxt.reshape(-1),
                   vyt.reshape(-1))
     sr = np.empty((m, 4))
-    slip_ratio_kernel(omega.reshape(-1), vxt.reshape(-1), radius, 0.1, sr.reshape(-1))
+    slip_ratio_kernel(omega_v.reshape(-1), vxt.reshape(-1), radius, 0.1, sr.reshape(-1))
     sa = np.empty((m, 4))
     slip_angle_kernel(vxt.reshape(-1), vyt.reshape(-1), 0.5, sa.reshape(-1))
     col = P.col
@@ -386,22 +460,23 @@ def _block(P: Params, S: State, x: np.ndarray, Y: np.ndarray, k0: int) -> None:
     _put(Y, col, j + 1, pitch, k0)
     _put(Y, col, j + 2, bias[:, 0].copy(), k0)
     _put(Y, col, j + 3, c_y, k0)
-    _put(Y, col, j + 4, np.ones(m), k0)  # radius_scale: no gnss_speed on this path
-    _put(Y, col, j + 5, np.zeros(m), k0)  # gnss_latency
-    _post(P.post, S.post, x, t, v, sig, c_y, bias[:, 3].copy(), fx, fy, fz, sig_fx, sig_fy,
-          sr, sa, vxt, vyt, delta, omega, Y, col, k0)
+    _put(Y, col, j + 4, scale, k0)
+    _put(Y, col, j + 5, latency, k0)
+    _post(P.post, S.post, x, t, ax, v, sig, c_y, bias[:, 3].copy(), fx, fy, fz, sig_fx, sig_fy,
+          sr, sa, vxt, vyt, delta, omega_v, Y, col, k0)
 
 
 @njit(**_JIT)
 def _fused(P: Params, S: State, t: np.ndarray, omega: np.ndarray, torque: np.ndarray,
-           delta: np.ndarray, r: np.ndarray, w_mean: np.ndarray, fxa: np.ndarray,
-           fya: np.ndarray, fy_sd: np.ndarray, mu_x: np.ndarray, axle: np.ndarray,
-           v_ref: np.ndarray, sig_ref: np.ndarray, bias_ref: np.ndarray,
+           delta: np.ndarray, r: np.ndarray, fxa: np.ndarray, fya: np.ndarray,
+           fy_sd: np.ndarray, mu_x: np.ndarray, axle: np.ndarray, extra: np.ndarray,
+           extra_var: np.ndarray, v_ref: np.ndarray, sig_ref: np.ndarray, bias_ref: np.ndarray,
            same: bool) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """The fused filter of a block (Pipeline._advance's "fused"): the corner KF, its axle
     fusion against the reference speed, and the second reference filter that takes the
-    fused corner v_x while ≥ 3 corners are in high slip. Returns its (v, σ, bias), the
-    reference filter's while the fused one has not yet diverged from it."""
+    fused corner v_x (into ``extra[:, 1]``, ``extra_var[:, 1]``; column 0 holds the GNSS
+    fixes) while ≥ 3 corners are in high slip. Returns its (v, σ, bias), the reference
+    filter's while the fused one has not yet diverged from it."""
     vp = P.velocity
     vs = S.velocity
     cp = vp.corner
@@ -421,7 +496,9 @@ def _fused(P: Params, S: State, t: np.ndarray, omega: np.ndarray, torque: np.nda
     a_yt = np.empty((m, 4))
     rotate_kernel(ax_i.reshape(-1), ay_i.reshape(-1), delta.reshape(-1), 1.0, a_xt.reshape(-1),
                   a_yt.reshape(-1))
-    vg = radius * w_mean
+    vg = np.empty(m)
+    for i in range(m):
+        vg[i] = radius * (0.25 * (omega[i, 0] + omega[i, 1] + omega[i, 2] + omega[i, 3]))
     vyr = v_ref[:, 1].copy()
     vx_i, vy_i = transport_kernel(vg, vyr, r, xw, yw, 1.0)
     vxt_g = np.empty((m, 4))
@@ -464,17 +541,14 @@ def _fused(P: Params, S: State, t: np.ndarray, omega: np.ndarray, torque: np.nda
         adaptive_axle_kernel(phi, slip, vp.w_s, vp.w_range, vp.rho, vp.threshold, vx_f, fw)
     else:
         fixed_axle_kernel(phi, vp.eta_front, vx_f, fw)
-    extra = np.full((m, 1), np.nan)
-    var = np.full((m, 1), np.nan)
     any_slip = False
     for i in range(m):
         n_high = 0
         for c in range(4):
             n_high += 1 if k_high[i, c] else 0
-        if n_high >= 3:
-            any_slip = True
-            extra[i, 0] = vx_f[i]
-            var[i, 0] = vp.reference.sigma_corner_slip ** 2
+        any_slip = any_slip or n_high >= 3
+        extra[i, 1] = vx_f[i] if n_high >= 3 else np.nan
+        extra_var[i, 1] = vp.reference.sigma_corner_slip ** 2 if n_high >= 3 else np.nan
     if same and not any_slip:
         return v_ref, sig_ref, bias_ref
     vs.prev[2] = 0.0
@@ -483,12 +557,13 @@ def _fused(P: Params, S: State, t: np.ndarray, omega: np.ndarray, torque: np.nda
     bias = np.empty((m, 4))
     trust = np.empty((m, 4))
     _reference_rows(vp.reference, vs.fused, 0, m, t, omega, torque, mu_x, axle, fxa, fya,
-                    fy_sd, r, delta, extra, var, v, sig, bias, trust)
+                    fy_sd, r, delta, extra, extra_var, v, sig, bias, trust)
     return v, sig, bias
 
 
 @njit(**_JIT)
-def _post(p: PostParams, st: PostState, x: np.ndarray, t: np.ndarray, v: np.ndarray,
+def _post(p: PostParams, st: PostState, x: np.ndarray, t: np.ndarray, ax: np.ndarray,
+          v: np.ndarray,
           sig: np.ndarray, c_y: np.ndarray, vy_unverified: np.ndarray, fx: np.ndarray,
           fy: np.ndarray, fz: np.ndarray, sig_fx: np.ndarray, sig_fy: np.ndarray,
           sr: np.ndarray, sa: np.ndarray, vxt: np.ndarray, vyt: np.ndarray, delta: np.ndarray,
@@ -531,7 +606,7 @@ def _post(p: PostParams, st: PostState, x: np.ndarray, t: np.ndarray, v: np.ndar
         for c in range(4):
             fz_i[c] = fz[i, c]
         uncertainty_step(p.uncertainty, st.uncertainty, t[i], vx, sig[i, 0], sig[i, 1],
-                         delta[i], omega[i], x[i, X_AX], x[i, X_AY], fz_i, vxt[i], vyt[i],
+                         delta[i], omega[i], ax[i], x[i, X_AY], fz_i, vxt[i], vyt[i],
                          sr[i], c_y[i], sigma)
         for c in range(N_SIGMA):
             if col[_R_SIGMA + c] >= 0:
@@ -554,10 +629,10 @@ def columns(names: tuple[str, ...]) -> np.ndarray:
     return np.array([at.get(name, -1) for name in ROW_NAMES], dtype=np.int64)
 
 
-def build(pipe: Pipeline, names: tuple[str, ...]) -> tuple[Params, State]:
+def build(pipe: Pipeline, names: tuple[str, ...], sensors: Sensors) -> tuple[Params, State]:
     """The parameter and state trees of ``pipe`` as it is now (its state arrays shared, not
-    copied), writing the quantities of :data:`ROW_NAMES` to Y's rows in the order of
-    ``names``. Only for a configuration :func:`covers` accepts."""
+    copied) for a log with ``sensors``, writing the quantities of :data:`ROW_NAMES` to Y's
+    rows in the order of ``names``. Only for a configuration :func:`covers` accepts."""
     cfg = pipe.config
     fe = pipe.force
     veh = pipe.vehicle
@@ -571,7 +646,7 @@ def build(pipe: Pipeline, names: tuple[str, ...]) -> tuple[Params, State]:
         fe._att_prm, lon.kernel_params, lon._wm, lon._wc, float(lon._tau), fe._xw, fe._yw,
         fe._q_lat, fe._r_lat, fe._w4, fe._c4, float(fe._tau4))
     force_s = ForceState(fe._att, lon._x, lon._P, lon._hist_t, lon._hist_w, fe._lat_x,
-                         fe._lat_P, fe._lat_state)
+                         fe._lat_P, fe._lat_state, fe._ax_state)
     fused = cfg.velocity == "fused"
     corner = pipe.corner
     if fused:
@@ -595,13 +670,18 @@ def build(pipe: Pipeline, names: tuple[str, ...]) -> tuple[Params, State]:
                                np.zeros(1, dtype=np.int64))
     fp = cfg.fusion_params
     ap = fp.adaptive
-    velocity_p = VelocityParams(pipe._stiff_prm, pipe.reference.kernel_params, fused, corner_p,
-                                cfg.fusion == "adaptive", float(fp.eta_front), float(ap.w_s),
-                                float(ap.w_range), float(ap.rho), float(ap.threshold))
+    ref = pipe.reference
+    p_ref = cfg.reference
+    velocity_p = VelocityParams(
+        pipe._stiff_prm, pipe._radius_prm,
+        ref.kernel_params if sensors.ax else ref.kernel_params_speed,
+        float(p_ref.sigma_gnss), float(p_ref.tau_wheel), fused, corner_p,
+        cfg.fusion == "adaptive", float(fp.eta_front), float(ap.w_s), float(ap.w_range),
+        float(ap.rho), float(ap.threshold))
     prev = np.array([pipe._prev[0], pipe._prev[1], 1.0 if pipe._fused_is_reference else 0.0])
-    velocity_s = VelocityState(pipe._stiff_state, pipe.reference.state, pipe.fused.state, prev,
-                               corner_s)
+    velocity_s = VelocityState(pipe._stiff_state, pipe._radius_state, pipe._t_gnss, ref.state,
+                               pipe.fused.state, prev, corner_s)
     post_p = PostParams(pipe._friction_prm, pipe._validity_prm, pipe._unc_prm)
     post_s = PostState(pipe._friction_state, pipe._unc_state, pipe._t_start)
-    return (Params(force_p, velocity_p, post_p, columns(names)),
+    return (Params(sensors, force_p, velocity_p, post_p, columns(names)),
             State(force_s, velocity_s, post_s))
