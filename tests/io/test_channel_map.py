@@ -168,6 +168,44 @@ def test_mounting_matrix_convention():
     np.testing.assert_allclose(rr.T @ rr, np.eye(3), atol=1e-15)
 
 
+def test_mounting_matrix_equals_the_former_rodrigues_matrices():
+    """scipy's Rotation gives the matrices of the hand-written Rodrigues formula it replaced
+    (issue 28; values printed by that code at 1d19098), to float rounding (1e-15)."""
+    old = {(2.0, 3.0, 1.5): [[0.9982873293543426, -0.02429865074186709, 0.05321638490821234],
+                             [0.02614107370998589, 0.9990729584069269, -0.03420333383341344],
+                             [-0.05233595624294383, 0.03553588822803791, 0.9979970682982897]],
+           (-7.0, -4.0, 20.0): [[0.9374035767904598, -0.33014266763711886, -0.11081675516770563],
+                                [0.3411869994463997, 0.9344062847030452, 0.10235392770291608],
+                                [0.0697564737441253, -0.13375617411132149, 0.988556179616458]]}
+    for angles, matrix in old.items():
+        np.testing.assert_allclose(mounting_matrix(*angles), matrix, rtol=0, atol=1e-15)
+    np.testing.assert_array_equal(mounting_matrix(0.0, 0.0, 0.0), np.eye(3))
+
+
+def test_pose_orientation_is_slerp_not_componentwise():
+    """Between two pose samples 90° of yaw apart the orientation turns at a constant rate
+    (Slerp): at 1/4 of the interval it is a 22.5° yaw, exactly (1e-12). The component-wise
+    interpolation it replaced gave atan2(0.25·sin 45°, 0.75 + 0.25·cos 45°)·2 = 21.6° there.
+    Unnormalised samples count as their unit quaternions; outside the samples the first or
+    last orientation holds."""
+    from vestim.io.channel_map import pose_orientation
+
+    t = np.array([0.0, 1.0])
+    half = math.radians(45.0)
+    w, z = np.array([2.0, math.cos(half)]), np.array([0.0, math.sin(half)])  # yaw 0°, then 90°
+    zero = np.zeros(2)
+    rot = pose_orientation(np.array([-1.0, 0.25, 0.5, 2.0]),
+                           (Stream(t, w), Stream(t, zero), Stream(t, zero), Stream(t, z)))
+    yaw = np.degrees(rot.as_euler("ZYX")[:, 0])
+    np.testing.assert_allclose(yaw, [0.0, 22.5, 45.0, 90.0], rtol=0, atol=1e-12)
+    lerp = [np.interp(0.25, t, c) for c in (np.array([1.0, math.cos(half)]), z)]
+    assert abs(math.degrees(2 * math.atan2(lerp[1], lerp[0])) - 21.6) < 0.05
+    with pytest.raises(ChannelMapError, match="zero quaternion"):
+        pose_orientation(t, (Stream(t, zero), Stream(t, zero), Stream(t, zero), Stream(t, zero)))
+    with pytest.raises(ChannelMapError, match="same sample times"):
+        pose_orientation(t, (Stream(t, w), Stream(t + 0.1, zero), Stream(t, zero), Stream(t, z)))
+
+
 # --- resampling -----------------------------------------------------------------------------
 
 

@@ -45,6 +45,7 @@ __all__ = [
     "ImportReport",
     "Mounting",
     "PoseSpec",
+    "pose_orientation",
     "evaluate_expression",
     "frame_matrix",
     "import_log",
@@ -276,11 +277,6 @@ def frame_matrix(frame: str) -> np.ndarray:
     return m
 
 
-def _rx(a: float) -> np.ndarray:
-    c, s = math.cos(a), math.sin(a)
-    return np.array([[1.0, 0.0, 0.0], [0.0, c, -s], [0.0, s, c]])
-
-
 def mounting_matrix(roll_deg: float, pitch_deg: float, yaw_deg: float) -> np.ndarray:
     """Rotation taking vectors in the sensor's axes (after the frame conversion) to the body's.
 
@@ -293,22 +289,17 @@ def mounting_matrix(roll_deg: float, pitch_deg: float, yaw_deg: float) -> np.nda
     and 0.8°). It is the rotation openpilot-style calibrations find from the direction of
     travel, which sees the sensor's x axis only.
     """
+    from scipy.spatial.transform import Rotation
+
     p, y = math.radians(pitch_deg), math.radians(yaw_deg)
-    s = np.array([math.cos(p) * math.cos(y), math.cos(p) * math.sin(y), -math.sin(p)])
-    return _min_rotation(np.array([1.0, 0.0, 0.0]), s) @ _rx(math.radians(roll_deg))
-
-
-def _min_rotation(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """The smallest rotation taking unit vector ``a`` to unit vector ``b`` (Rodrigues)."""
-    v = np.cross(a, b)
-    s = float(np.linalg.norm(v))
-    c = float(a @ b)
-    if s < 1e-15:
-        if c > 0:
-            return np.eye(3)
+    sx = np.array([math.cos(p) * math.cos(y), math.cos(p) * math.sin(y), -math.sin(p)])
+    if sx[0] <= -1.0 + 1e-15:
         raise ChannelMapError("mounting: the sensor's x axis points backwards; use frame")
-    k = np.array([[0.0, -v[2], v[1]], [v[2], 0.0, -v[0]], [-v[1], v[0], 0.0]])
-    return np.eye(3) + k + k @ k * ((1.0 - c) / s**2)
+    # The smallest rotation taking forward to sx is about forward × sx by the angle between them.
+    axis = np.cross([1.0, 0.0, 0.0], sx)
+    turn = Rotation.from_rotvec(axis / max(float(np.linalg.norm(axis)), 1e-300)
+                                * math.atan2(float(np.linalg.norm(axis)), float(sx[0])))
+    return np.asarray((turn * Rotation.from_euler("x", roll_deg, degrees=True)).as_matrix())
 
 
 def _angles_of_travel(d: np.ndarray) -> tuple[float, float]:
@@ -1029,15 +1020,30 @@ def _roll_from_gravity(m: np.ndarray, pitch_deg: float, yaw_deg: float) -> float
     return math.degrees(min(roots, key=abs))
 
 
-def _quat_matrix(q: np.ndarray) -> np.ndarray:
-    """(n, 3, 3) rotation matrices of unit quaternions (w, x, y, z) of shape (n, 4)."""
-    q = q / np.linalg.norm(q, axis=1, keepdims=True)
-    w, x, y, z = q.T
-    return np.stack([
-        np.stack([1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)], -1),
-        np.stack([2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)], -1),
-        np.stack([2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)], -1),
-    ], -2)
+def pose_orientation(t: np.ndarray, orientation: tuple[Stream, Stream, Stream, Stream]) -> Any:
+    """The pose's orientation at times ``t`` (s): a scipy ``Rotation`` of ``len(t)`` rotations.
+
+    ``orientation`` holds the quaternion's (w, x, y, z) components, sampled at the same times;
+    each sample is normalised, and between samples the rotation is interpolated along the
+    great circle (``scipy.spatial.transform.Slerp``, constant angular rate), never component
+    by component. Times outside the samples take the first or last orientation.
+
+    Raises:
+        ChannelMapError: components with different sample times, or a zero quaternion.
+    """
+    from scipy.spatial.transform import Rotation, Slerp
+
+    tq = orientation[0].t
+    if any(len(s.t) != len(tq) or not np.array_equal(s.t, tq) for s in orientation):
+        raise ChannelMapError("[pose] orientation: the four components need the same sample times")
+    q = np.column_stack([s.value for s in orientation])
+    if not np.all(np.linalg.norm(q, axis=1) > 0):
+        raise ChannelMapError("[pose] orientation holds a zero quaternion")
+    keep = np.concatenate([[True], np.diff(tq) > 0])  # Slerp needs increasing times
+    rot = Rotation.from_quat(q[keep], scalar_first=True)
+    if len(rot) == 1:
+        return Rotation.concatenate([rot] * len(t))
+    return Slerp(tq[keep], rot)(np.clip(t, tq[keep][0], tq[keep][-1]))
 
 
 def _pose_velocity(cmap: ChannelMap, pose_streams: Mapping[str, Stream]
@@ -1051,11 +1057,8 @@ def _pose_velocity(cmap: ChannelMap, pose_streams: Mapping[str, Stream]
         raise ChannelMapError("[pose] velocity: the three components need the same sample times")
     conv = unit_factor(pose.velocity_unit, "ref_vx")
     v_world = np.column_stack([conv(s.value) for s in vs])
-    q = np.column_stack([np.interp(t, s.t, s.value) for s in
-                         (pose_streams[a] for a in pose.orientation)])
-    if not np.all(np.linalg.norm(q, axis=1) > 0):
-        raise ChannelMapError("[pose] orientation holds a zero quaternion")
-    v_sensor = np.einsum("nji,nj->ni", _quat_matrix(q), v_world)  # R(q)^T v
+    w, x, y, z = (pose_streams[a] for a in pose.orientation)
+    v_sensor = pose_orientation(t, (w, x, y, z)).apply(v_world, inverse=True)  # R(q)^T v
     return t, v_sensor @ frame_matrix(pose.frame).T
 
 
