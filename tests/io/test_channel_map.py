@@ -6,6 +6,7 @@ from __future__ import annotations
 import importlib.util
 import json
 import math
+import re
 import tomllib
 import types
 from pathlib import Path
@@ -62,6 +63,70 @@ IMU = ("ax", "ay", "az", "roll_rate", "pitch_rate", "yaw_rate")
 def test_unit_conversion_to_spec_si(unit, column, value, expected):
     got = unit_factor(unit, column)(np.array([value]))
     assert got[0] == pytest.approx(expected, rel=1e-12)
+
+
+@pytest.mark.parametrize(("unit", "column", "value", "expected"), [
+    ("Nm", "torque_fl", 2.0, 2.0),                       # newton metre, not nanometre
+    ("U/min", "omega_fl", 60.0, 2 * math.pi),            # Umdrehungen: revolutions per minute
+    ("m/s2", "ax", 1.5, 1.5),
+    ("dps", "yaw_rate", 180.0, math.pi),
+    ("%", "slip_ratio_fl", 12.0, 0.12),
+    ("kph", "gnss_speed", 36.0, 10.0),
+])
+def test_dbc_unit_vocabulary(unit, column, value, expected):
+    """The spellings real DBCs use parse to what they mean (issue 28)."""
+    assert unit_factor(unit, column)(np.array([value]))[0] == pytest.approx(expected, rel=1e-12)
+
+
+@pytest.mark.parametrize("unit", ["1/min", "Hz", "1/s", "min^-1"])
+def test_a_bare_rate_for_an_angular_speed_is_refused(unit):
+    """1/min does not say revolutions or radians (2π apart): refused for ω and the body rates,
+    naming the fix; a ratio such as km/h / m (a speed over a radius) stays rad/s."""
+    with pytest.raises(ChannelMapError, match=rf"'omega_rl': unit '{re.escape(unit)}' is a bare "
+                                              r"rate.*unit = \"rpm\""):
+        unit_factor(unit, "omega_rl")
+    with pytest.raises(ChannelMapError, match="bare rate"):
+        unit_factor(unit, "yaw_rate")
+    assert unit_factor("km/h / m", "omega_rl")(np.array([3.6]))[0] == pytest.approx(1.0)
+
+
+def _spec(unit=None, expr=None, name="omega_fl"):
+    from vestim.io.channel_map import ChannelSpec
+
+    return ChannelSpec(name=name, sources={"src": "WHEEL.Speed"}, unit=unit, expr=expr)
+
+
+def _carrying(unit):
+    return {"src": Stream(np.zeros(2), np.zeros(2), unit)}
+
+
+def test_units_from_the_source():
+    """No unit in the map: the source's (DBC/MDF4) unit; the same unit in another spelling
+    agrees; rpm makes a source's bare 1/min explicit; an expression's unit is not compared."""
+    from vestim.io.channel_map import source_unit
+
+    assert source_unit(_spec(), _carrying("rpm")) == "rpm"
+    assert source_unit(_spec(name="torque_fl"), _carrying("Nm")) == "Nm"
+    assert source_unit(_spec("N*m", name="torque_fl"), _carrying("Nm")) == "N*m"
+    assert source_unit(_spec("rpm"), _carrying("1/min")) == "rpm"
+    assert source_unit(_spec("rad/s"), _carrying(None)) == "rad/s"
+    assert source_unit(_spec("deg/s", expr="src"), _carrying("rad/s")) == "deg/s"
+
+
+def test_unit_contradictions_and_gaps_are_refused():
+    from vestim.io.channel_map import source_unit
+
+    with pytest.raises(ChannelMapError, match=r"\[channels.omega_fl\]: unit = 'deg/s' contradicts the "
+                                              r"unit 'rpm' that source 'WHEEL.Speed' carries; remove "
+                                              r"the map's unit.*expr = \"src\""):
+        source_unit(_spec("deg/s"), _carrying("rpm"))
+    with pytest.raises(ChannelMapError, match="contradicts"):
+        source_unit(_spec("m/s^2", name="ax"), _carrying("g"))  # 9.81 apart
+    with pytest.raises(ChannelMapError, match=r"\[channels.omega_fl\]: unit is missing and source "
+                                              r"'WHEEL.Speed' carries none"):
+        source_unit(_spec(), _carrying(None))
+    with pytest.raises(ChannelMapError, match=r"carries the unit '1/min', a bare rate.*unit = \"rpm\""):
+        source_unit(_spec(), _carrying("1/min"))
 
 
 def test_unit_errors_name_the_channel():
@@ -244,7 +309,8 @@ def _map(channels: dict, **extra) -> dict:
 @pytest.mark.parametrize(("data", "message"), [
     (_map({"omega_xx": {"source": "a", "unit": "rad/s"}}), r"'omega_xx' is not a measured"),
     (_map({"t": {"source": "a", "unit": "s"}}), r"t is implied by the source clocks"),
-    (_map({"ay": {"source": "a"}}), r"\[channels.ay\]: unit is missing.*\"m/s²\""),
+    (_map({"ay": {"source": "a", "expr": "2 * src"}}),
+     r"\[channels.ay\]: unit is missing; an expression's result.*\"m/s²\""),
     (_map({"ay": {"source": "a", "unit": "g", "colour": 1}}), r"unknown key\(s\) colour"),
     (_map({"ay": {"sources": {"a": "x", "b": "y"}, "unit": "g"}}), r"need an expr"),
     (_map({"ay": {"source": "a", "unit": "g", "expr": "src * k"}}), r"unknown name 'k'"),

@@ -53,6 +53,7 @@ __all__ = [
     "mounting_matrix",
     "parse_expression",
     "resample",
+    "source_unit",
     "unit_factor",
 ]
 
@@ -102,37 +103,80 @@ def _spec_unit(unit: str) -> str:
     return unit.replace("·", "*").replace("²", "**2")
 
 
+UNIT_SPELLINGS: dict[str, str] = {
+    "Nm": "N*m", "N.m": "N*m", "N m": "N*m", "kNm": "kN*m",
+    "U/min": "revolution/minute", "u/min": "revolution/minute", "rev/min": "revolution/minute",
+    "rev/s": "revolution/s", "rps": "revolution/s",
+    "dps": "deg/s", "°/s": "deg/s", "°": "deg", "deg/sec": "deg/s", "rad/sec": "rad/s",
+    "m/s2": "m/s^2", "m/s²": "m/s^2", "m/s/s": "m/s^2", "m/sec2": "m/s^2", "m/sec^2": "m/s^2",
+    "kph": "km/h", "kmh": "km/h", "-": "dimensionless", "": "dimensionless",
+}
+"""Unit spellings of real DBC and MDF4 files that pint does not read as meant, and what they
+mean: ``Nm`` (newton metre, not nanometre), ``U/min`` (German Umdrehungen, revolutions per
+minute), ``dps`` (degrees per second), ``m/s2`` (m/s²), ``%`` is pint's own percent."""
+
+def _parse_unit(unit: str, column: str) -> Any:
+    """``unit`` as a pint Unit (after :data:`UNIT_SPELLINGS`; ``g`` is standard gravity for
+    an acceleration), or a ChannelMapError naming the channel."""
+    import pint
+
+    ureg = _ureg()
+    text = UNIT_SPELLINGS.get(unit.strip(), unit.strip())
+    target = ch.unit_of(column)
+    if text in ("g", "G") and target is not None and (
+            ureg.Unit(_spec_unit(target)).dimensionality == ureg.Unit("m/s**2").dimensionality):
+        text = "standard_gravity"
+    try:
+        return ureg.Unit(text)
+    except (pint.errors.UndefinedUnitError, pint.errors.DefinitionSyntaxError, ValueError,
+            AttributeError, TypeError, SyntaxError, AssertionError) as exc:
+        raise ChannelMapError(
+            f"channel {column!r}: unknown unit {unit!r} ({exc}); write a pint unit such as "
+            "'km/h', 'deg', 'deg/s', 'rpm', 'm/s^2', 'g', 'N*m'"
+        ) from None
+
+
+def ambiguous_rate(unit: str, column: str) -> bool:
+    """True when ``unit`` is a bare rate (only time units: ``1/min``, ``1/s``, ``Hz``,
+    ``min^-1``) and ``column`` an angular speed (rad/s: omega_*, yaw/roll/pitch_rate).
+
+    Such a unit does not say per minute *of what*: a DBC's ``1/min`` wheel speed counts
+    revolutions (×2π to rad), pint would count radians. A unit naming the angle (``rpm``,
+    ``U/min``, ``rev/min``, ``rad/s``, ``deg/s``) or a ratio of other units (``km/h / m``,
+    a speed over a radius, which is rad/s) is not ambiguous.
+    """
+    if ch.unit_of(column) != "rad/s":
+        return False
+    ureg = _ureg()
+    parsed = _parse_unit(unit, column)
+    names = list(parsed._units)  # pint's UnitsContainer: unit name -> exponent
+    time_like = (ureg.get_dimensionality("s"), ureg.get_dimensionality("Hz"))
+    # pint's radian is dimensionless, so rpm has the dimension of Hz: look for the angle in
+    # each unit's base form.
+    return bool(names) and all(
+        ureg.get_dimensionality(n) in time_like
+        and "radian" not in ureg.Quantity(1.0, n).to_base_units().units._units for n in names)
+
+
 def unit_factor(unit: str, column: str) -> Callable[[np.ndarray], np.ndarray]:
     """The conversion of values in ``unit`` to the SI unit of spec column ``column``.
 
-    ``unit`` is any pint unit ("km/h", "deg", "deg/s", "rpm", "mm", "ms"…); ``"g"`` (or
+    ``unit`` is any pint unit ("km/h", "deg", "deg/s", "rpm", "mm", "ms"…) or a spelling of
+    :data:`UNIT_SPELLINGS` (``Nm``, ``U/min``, ``dps``, ``m/s2``, ``%``); ``"g"`` (or
     ``"G"``) means standard gravity for an acceleration, not gram. Offset units (degC) are
     converted with their offset.
 
     Raises:
-        ChannelMapError: unknown unit, or a dimension that cannot be converted (e.g. km/h for
-            a wheel angular speed), naming the channel.
+        ChannelMapError: unknown unit, a dimension that cannot be converted (e.g. km/h for
+            a wheel angular speed), or an ambiguous rate for an angular speed
+            (:func:`ambiguous_rate`), naming the channel.
     """
-    import pint
-
     target = ch.unit_of(column)
     if target is None:
         raise ChannelMapError(f"channel {column!r} is not a spec channel")
     ureg = _ureg()
     tgt = ureg.Unit(_spec_unit(target))
-    src_text = unit.strip()
-    if src_text in ("g", "G") and tgt.dimensionality == ureg.Unit("m/s**2").dimensionality:
-        src_text = "standard_gravity"
-    if src_text in ("-", ""):
-        src_text = "dimensionless"
-    try:
-        src = ureg.Unit(src_text)
-    except (pint.errors.UndefinedUnitError, pint.errors.DefinitionSyntaxError, ValueError,
-            AttributeError, TypeError, SyntaxError) as exc:
-        raise ChannelMapError(
-            f"channel {column!r}: unknown unit {unit!r} ({exc}); write a pint unit such as "
-            "'km/h', 'deg', 'deg/s', 'rpm', 'm/s^2', 'g'"
-        ) from None
+    src = _parse_unit(unit, column)
     if src.dimensionality != tgt.dimensionality:
         raise ChannelMapError(
             f"channel {column!r}: unit {unit!r} ({src.dimensionality}) cannot be converted to "
@@ -140,11 +184,68 @@ def unit_factor(unit: str, column: str) -> Callable[[np.ndarray], np.ndarray]:
             "expression that makes the quantity (e.g. wheel speed in m/s: expr = \"src / "
             "0.35\" with unit = \"rad/s\", the unit of the expression's result)"
         )
+    if ambiguous_rate(unit, column):
+        raise ChannelMapError(
+            f"channel {column!r}: unit {unit!r} is a bare rate: revolutions or radians per "
+            "unit of time? (a factor 2π apart); write the angle: unit = \"rpm\" (= \"U/min\", "
+            "revolutions per minute) or \"rad/s\""
+        )
 
     def convert(values: np.ndarray) -> np.ndarray:
         return np.asarray(ureg.Quantity(values, src).to(tgt).magnitude, dtype=np.float64)
 
     return convert
+
+
+def source_unit(spec: ChannelSpec, streams: Mapping[str, Stream]) -> str:
+    """The unit of ``spec``'s values: the map's ``unit``, or the source's where it gives none.
+
+    Without ``expr`` the map's unit must agree with the unit the source carries (a DBC
+    signal's or an MDF4 channel's): the same unit in another spelling (``Nm`` and ``N*m``)
+    agrees, and so does an angle-bearing unit for a source's bare rate (``rpm`` for
+    ``1/min``, which it makes explicit). With ``expr`` the unit is the expression's result's
+    and is not compared (the way to override a wrong source label).
+
+    Raises:
+        ChannelMapError: no unit in the map nor in the source, or a contradiction; the
+            message names the entry, both units and the fix.
+    """
+    where = f"[channels.{spec.name}]"
+    carried = streams["src"].unit if spec.expr is None and "src" in streams else None
+    address = spec.sources.get("src", "")
+    if spec.unit is None:
+        if not carried:
+            raise ChannelMapError(
+                f"{where}: unit is missing and source {address!r} carries none; give the "
+                f"unit of the source, e.g. unit = \"{ch.unit_of(spec.name)}\" if it is already SI"
+            )
+        if ambiguous_rate(carried, spec.name):
+            raise ChannelMapError(
+                f"{where}: source {address!r} carries the unit {carried!r}, a bare rate: "
+                "revolutions or radians per unit of time? (a factor 2π apart); say which in "
+                "the map: unit = \"rpm\" (revolutions per minute) or \"rad/min\""
+            )
+        return carried
+    if not carried:
+        return spec.unit
+    ureg = _ureg()
+    try:
+        mine, theirs = _parse_unit(spec.unit, spec.name), _parse_unit(carried, spec.name)
+    except ChannelMapError:
+        return spec.unit  # a source label pint cannot read: the map says what it means
+    ratio = ureg.Quantity(1.0, mine) / ureg.Quantity(1.0, theirs)
+    base = ratio.to_base_units()
+    agrees = base.dimensionless and abs(float(base.magnitude) - 1.0) < 1e-9
+    if not agrees and ambiguous_rate(carried, spec.name):
+        agrees = dict(base.units._units) == {"radian": 1}  # rev or rad: the map says which
+    if not agrees:
+        raise ChannelMapError(
+            f"{where}: unit = {spec.unit!r} contradicts the unit {carried!r} that source "
+            f"{address!r} carries; remove the map's unit to take the source's, or, if the "
+            f"source's label is wrong, write expr = \"src\" with unit = {spec.unit!r} (the "
+            "unit of an expression's result is taken as written)"
+        )
+    return spec.unit
 
 
 def _time_scale(unit: str, where: str) -> float:
@@ -321,13 +422,14 @@ class ChannelSpec:
     """One spec channel of a map: where it comes from and how it is converted.
 
     ``sources`` maps expression names to source addresses (one source is named ``src``);
-    ``unit`` is the unit of the expression's result (the source's unit without one);
+    ``unit`` is the unit of the expression's result (the source's unit without one); None:
+    the unit the source carries (a DBC signal's, an MDF4 channel's), see :func:`source_unit`;
     ``offset`` (s) is added to the sources' sample times.
     """
 
     name: str
     sources: Mapping[str, str]
-    unit: str
+    unit: str | None
     expr: str | None = None
     resample: str = "linear"
     offset: float = 0.0
@@ -585,13 +687,15 @@ def _parse_channel(name: str, spec: Any) -> ChannelSpec:
         parse_expression(_string(expr, f"{where} expr"), set(sources))
     elif len(sources) > 1:
         raise ChannelMapError(f"{where}: several sources need an expr that combines them")
-    if "unit" not in t:
+    unit: str | None = None
+    if "unit" in t:
+        unit = _string(t["unit"], f"{where} unit") if t["unit"] != "-" else "-"
+        unit_factor(unit, name)
+    elif expr is not None:
         raise ChannelMapError(
-            f"{where}: unit is missing; give the unit of the source (or of the expression's "
-            f"result), e.g. unit = \"{ch.unit_of(name)}\" if it is already SI"
+            f"{where}: unit is missing; an expression's result has the unit you give it, e.g. "
+            f"unit = \"{ch.unit_of(name)}\" if it is already SI"
         )
-    unit = _string(t["unit"], f"{where} unit") if t["unit"] != "-" else "-"
-    unit_factor(unit, name)
     rule = t.get("resample", "sparse" if name in ch.SPARSE else "linear")
     if rule not in RESAMPLE_RULES:
         raise ChannelMapError(f"{where} resample = {rule!r}: use one of "
@@ -723,7 +827,7 @@ def apply_channel_map(src: Path, cmap: ChannelMap) -> tuple[pd.DataFrame, Import
         s = raw[address]
         if len(s.t) == 0:
             raise ChannelMapError(f"source {address!r} has no samples")
-        return Stream(s.t + (cmap.offset + offset), s.value)
+        return Stream(s.t + (cmap.offset + offset), s.value, s.unit)
 
     per_channel = {name: {k: shifted(a, spec.offset) for k, a in spec.sources.items()}
                    for name, spec in cmap.channels.items()}
@@ -790,7 +894,7 @@ def apply_channel_map(src: Path, cmap: ChannelMap) -> tuple[pd.DataFrame, Import
 
 def _channel_values(spec: ChannelSpec, streams: Mapping[str, Stream], grid: np.ndarray,
                     rate: float) -> np.ndarray:
-    convert = unit_factor(spec.unit, spec.name)
+    convert = unit_factor(source_unit(spec, streams), spec.name)
     if spec.resample == "sparse":
         ((key, s),) = streams.items()
         v = s.value if spec.expr is None else evaluate_expression(spec.expr, {key: s.value})
