@@ -25,7 +25,6 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-import numpy as np
 from _timing import best_of
 from vestim.io.readers.mdf import read_streams
 from vestim.io.writers import CAN_SIGNALS, write_mdf_can
