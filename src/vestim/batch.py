@@ -247,7 +247,12 @@ def open_runner(scheduler: str | None = None, n_workers: int = 2, *,
     if scheduler in (None, "local"):
         if n_workers < 1:
             raise BatchError(f"n_workers = {n_workers}: use at least 1 worker process")
+        import dask
+
         scratch = tempfile.TemporaryDirectory(prefix="vestim-dask-")
+        # Dask puts its dask-scratch-space in its temporary-directory (the system's temp folder
+        # by default) and leaves it behind: point it, and the workers, into ours.
+        config = dask.config.set({"temporary-directory": scratch.name})
         try:
             try:
                 cluster = distributed.LocalCluster(
@@ -267,6 +272,7 @@ def open_runner(scheduler: str | None = None, n_workers: int = 2, *,
             finally:
                 cluster.close()
         finally:
+            config.__exit__(None, None, None)
             scratch.cleanup()
         return
     try:

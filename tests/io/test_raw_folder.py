@@ -121,7 +121,8 @@ max_gap = 0.1
     "az": "/imu:linear_acceleration.z", "roll_rate": "/imu:angular_velocity.x",
     "pitch_rate": "/imu:angular_velocity.y", "yaw_rate": "/imu:angular_velocity.z"}.items()) + "".join(
     f'[channels.{c}]\nsource = "{a}"\nunit = "{u}"\n' for c, a, u in [
-        *((f"omega_{k}", f"/wheel_speeds:data[{i}]", "rad/s") for i, k in enumerate(("fl", "fr", "rl", "rr"))),
+        *((f"omega_{k}", f"/wheel_speeds:data[{i}]", "rad/s")
+          for i, k in enumerate(("fl", "fr", "rl", "rr"))),
         *((f"torque_{k}", f"/wheel_torques:{k}", "N*m") for k in ("fl", "fr", "rl", "rr")),
         ("steering_wheel_angle", "/steering:steering_wheel_angle", "rad"),
         ("delta_fl", "/road_wheel_angles:fl", "rad"), ("delta_fr", "/road_wheel_angles:fr", "rad")])
@@ -142,8 +143,9 @@ def write_can_mf4(log: pd.DataFrame, path: Path, dbc: Path) -> None:
                 if name == "TORQUES":
                     values["TrqMux"] = mux - 2
                 data = message.encode(values, scaling=True, strict=True)
-                writer.on_message_received(can.Message(timestamp=t0 + float(t), arbitration_id=message.frame_id,
-                                                       is_extended_id=False, data=data, channel=1))
+                writer.on_message_received(can.Message(
+                    timestamp=t0 + float(t), arbitration_id=message.frame_id, is_extended_id=False,
+                    data=data, channel=1))
     finally:
         writer.stop()
 
@@ -153,8 +155,8 @@ def _estimates(folder: Path) -> dict[str, pd.DataFrame]:
             for p in sorted(folder.glob("*_estimate.parquet"))}
 
 
-def test_raw_folder_channels_import_and_batch_give_the_parquet_estimates(tmp_path: Path,
-                                                                         monkeypatch: pytest.MonkeyPatch) -> None:
+def test_raw_folder_channels_import_and_batch_give_the_parquet_estimates(
+        tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
     """Two simulated logs (step_steer, seeds 0 and 1, first 4 s) → two MDF4 + CAN files and two
     ROS 2 bags → ``vestim batch --map`` (one map per kind) → four estimates, each within
     0.01 σ (the median sigma_ of the Parquet estimate) of the estimate of its Parquet log on
