@@ -150,6 +150,25 @@ def write_can_mf4(log: pd.DataFrame, path: Path, dbc: Path) -> None:
         writer.stop()
 
 
+def _assert_decoded_as_asammdf(mf4: Path, dbc: Path) -> None:
+    import asammdf
+
+    from vestim.io.readers.mdf import read_streams
+
+    addresses = [f"{m}.{s}" for m, sig in FRAMES for s in sig]
+    ours = read_streams(mf4, addresses, dbc=[dbc])
+    with asammdf.MDF(str(mf4)) as raw:
+        decoded = raw.extract_bus_logging({"CAN": [(str(dbc), 0)]})
+        try:
+            for a in addresses:
+                theirs = decoded.get(f"CAN1.{a}")
+                np.testing.assert_array_equal(ours[a].value, np.asarray(theirs.samples, dtype=np.float64), a)
+                np.testing.assert_array_equal(ours[a].t, theirs.timestamps, a)
+                assert ours[a].unit == theirs.unit, a
+        finally:
+            decoded.close()
+
+
 def _estimates(folder: Path) -> dict[str, pd.DataFrame]:
     return {p.name.removesuffix("_estimate.parquet"): pd.read_parquet(p)
             for p in sorted(folder.glob("*_estimate.parquet"))}
@@ -184,6 +203,10 @@ def test_raw_folder_channels_import_and_batch_give_the_parquet_estimates(
         write_ros2_bag(measured, raw / f"{stem}_bag")
     (raw / "can.toml").write_text(CAN_MAP)
     (raw / "ros.toml").write_text(ROS_MAP)
+
+    # The file is decoded as asammdf's extract_bus_logging decodes it, bit for bit, including
+    # the multiplexed torques and the 32-bit Motorola signals of MF4Writer's 64-byte frames.
+    _assert_decoded_as_asammdf(raw / "drive_a_can.mf4", raw / "car.dbc")
 
     # vestim channels: every signal with its DBC unit and rate; the starter map takes the DBC units.
     r = runner.invoke(app, ["channels", str(raw / "drive_a_can.mf4"), "--dbc", str(raw / "car.dbc")])
