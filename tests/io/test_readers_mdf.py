@@ -237,6 +237,16 @@ def test_plain_channels_group_qualifier_and_invalid_samples(plain_mdf: Path) -> 
     np.testing.assert_allclose(s["temp"].t, np.array([0, 1, 4, 5, 6, 7, 8, 9]) * 0.1)
 
 
+def test_channel_listing_of_plain_channels(plain_mdf: Path) -> None:
+    """`vestim channels`: the two 'speed' channels as GROUP/speed with their MDF unit, 'temp'
+    with its 8 valid samples at 10 Hz; the text channel is not listed."""
+    from vestim.io.listing import list_signals
+
+    listing = list_signals(plain_mdf)
+    got = {s.address: (s.unit, s.samples, round(s.rate_hz, 6)) for s in listing.signals}
+    assert got == {"0/speed": ("km/h", 10, 10.0), "1/speed": ("km/h", 10, 10.0), "temp": (None, 8, 10.0)}
+
+
 def test_ambiguous_channel_lists_the_groups(plain_mdf: Path) -> None:
     with pytest.raises(LogFormatError,
                        match=r"'speed' is in 2 channel groups.*0/speed \(ESP\).*1/speed \(GPS\)"):

@@ -163,13 +163,15 @@ def _mdf_addresses(path: Path, dbc: Sequence[Path], notes: list[str]) -> list[st
     try:
         out: list[str] = []
         for name, entries in mdf.channels_db.items():
-            if name.startswith(("CAN_DataFrame", "CAN_ErrorFrame", "CAN_RemoteFrame")):
-                continue
+            if any(k in name for k in ("CAN_DataFrame", "CAN_ErrorFrame", "CAN_RemoteFrame")):
+                continue  # the raw frames' fields: decoded with the DBC below
+            # Numbers only (MDF4 data types 0-5: integers and floats), no master channels.
             plain = [(int(g), int(c)) for g, c in entries
-                     if mdf.groups[int(g)].channels[int(c)].channel_type not in (2, 3)]
+                     if mdf.groups[int(g)].channels[int(c)].channel_type not in (2, 3)
+                     and int(getattr(mdf.groups[int(g)].channels[int(c)], "data_type", 0)) <= 5]
             if len(plain) == 1:
                 out.append(name)
-            else:
+            elif plain:
                 out.extend(f"{g}/{name}" for g, _ in plain)
         keys = np.unique(mdf_reader._can_frames(mdf, path).key)
     finally:
