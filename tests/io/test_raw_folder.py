@@ -11,6 +11,7 @@ estimate equals the Parquet route's to within 0.01 σ.
 
 from __future__ import annotations
 
+import json
 import math
 import tomllib
 from pathlib import Path
@@ -21,6 +22,7 @@ import pytest
 from typer.testing import CliRunner
 
 from vestim.cli import app
+from vestim.io import read_log
 
 can = pytest.importorskip("can")
 cantools = pytest.importorskip("cantools")
@@ -235,6 +237,9 @@ def test_raw_folder_channels_import_and_batch_give_the_parquet_estimates(
                             "--out", str(imported)])
     assert r.exit_code == 0, r.output
     back, original = pd.read_parquet(imported), pd.read_parquet(sim / "drive_a.parquet")
+    units = json.loads(read_log(imported).attrs["import.units"])  # what each channel was read in
+    assert units["omega_fl"] == "rpm" and units["yaw_rate"] == "deg/s"
+    assert units["torque_fl"] == "Nm (source)" and units["ax"] == "g (source)"
     assert len(back) == len(original) == 801
     steps = {"omega_fl": 1e-4 / RPM, "torque_rr": 1e-4, "ax": 1e-6 * G, "yaw_rate": 1e-5 / DEG,
              "delta_fr": 1e-6 / DEG}

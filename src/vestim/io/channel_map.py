@@ -766,6 +766,9 @@ class ImportReport:
     """(start, end) s of the span kept by ``gaps = "trim"``; None when nothing was cut."""
     mounting: dict[str, Any] | None = None
     """roll/pitch/yaw in degrees and how each was found, when the IMU was rotated."""
+    units: dict[str, str] = field(default_factory=dict)
+    """channel → the unit its values were read in, with ``" (source)"`` where it was the
+    source's own (no ``unit`` in the map, :func:`source_unit`)."""
 
     def metadata(self) -> dict[str, str]:
         """The report as string metadata for :func:`vestim.io.log.write_log`."""
@@ -782,6 +785,8 @@ class ImportReport:
             meta["import.trimmed_s"] = json.dumps(list(self.trimmed))
         if self.mounting is not None:
             meta["import.mounting"] = json.dumps(self.mounting)
+        if self.units:
+            meta["import.units"] = json.dumps(self.units, ensure_ascii=False)
         return meta
 
 
@@ -874,11 +879,15 @@ def apply_channel_map(src: Path, cmap: ChannelMap) -> tuple[pd.DataFrame, Import
         grid = grid[keep]
         trimmed = (float(grid[0] - t_start), float(grid[-1] - t_start))
     data: dict[str, np.ndarray] = {}
+    units: dict[str, str] = {}
     for name, spec in cmap.channels.items():
-        data[name] = _channel_values(spec, per_channel[name], grid, cmap.rate)
+        unit = source_unit(spec, per_channel[name])
+        units[name] = unit if spec.unit is not None else f"{unit} (source)"
+        data[name] = _channel_values(spec, unit, per_channel[name], grid, cmap.rate)
 
     report = ImportReport(source=str(src), map=str(cmap.path or "(in memory)"),
-                          rate=cmap.rate, t0_source=t_start, gaps=gaps, trimmed=trimmed)
+                          rate=cmap.rate, t0_source=t_start, gaps=gaps, trimmed=trimmed,
+                          units=units)
     _imu_to_body(cmap, data, grid, pose_streams, report)
     if cmap.pose is not None:
         data.update(_pose_reference(cmap, pose_streams, grid, report))
@@ -892,9 +901,10 @@ def apply_channel_map(src: Path, cmap: ChannelMap) -> tuple[pd.DataFrame, Import
     return df, report
 
 
-def _channel_values(spec: ChannelSpec, streams: Mapping[str, Stream], grid: np.ndarray,
-                    rate: float) -> np.ndarray:
-    convert = unit_factor(source_unit(spec, streams), spec.name)
+def _channel_values(spec: ChannelSpec, unit: str, streams: Mapping[str, Stream],
+                    grid: np.ndarray, rate: float) -> np.ndarray:
+    """The channel's values on ``grid`` in SI, from ``streams`` in ``unit``."""
+    convert = unit_factor(unit, spec.name)
     if spec.resample == "sparse":
         ((key, s),) = streams.items()
         v = s.value if spec.expr is None else evaluate_expression(spec.expr, {key: s.value})
