@@ -115,6 +115,7 @@ UNIT_SPELLINGS: dict[str, str] = {
 mean: ``Nm`` (newton metre, not nanometre), ``U/min`` (German Umdrehungen, revolutions per
 minute), ``dps`` (degrees per second), ``m/s2`` (m/s²), ``%`` is pint's own percent."""
 
+
 def _parse_unit(unit: str, column: str) -> Any:
     """``unit`` as a pint Unit (after :data:`UNIT_SPELLINGS`; ``g`` is standard gravity for
     an acceleration), or a ChannelMapError naming the channel."""
