@@ -418,3 +418,31 @@ def test_existing_cluster_by_address_and_local_scratch_cleanup(logs: Path, tmp_p
         run_batch([logs / "coast.csv"], "auto", tmp_path / "o2", n_workers=1, dashboard=links.append)
     assert len(links) == 1 and links[0].startswith("http")
     assert list(scratch_root.rglob("dask-scratch-space")) == []
+
+
+def test_a_map_per_source_kind(tmp_path: Path):
+    """A recording takes the map of its kind, else the one without a kind; a spec log (CSV)
+    takes none unless a map says kind = "tabular"; none or two that fit are named errors."""
+    from vestim.batch import map_for
+
+    (tmp_path / "a.mf4").write_bytes(b"")
+    bag = tmp_path / "b_bag"
+    bag.mkdir()
+    (bag / "metadata.yaml").write_text("rosbag2_bagfile_information: {}\n")
+    (tmp_path / "c.csv").write_text("t\n0\n")
+    maps = [("can.toml", "mdf"), ("any.toml", None)]
+    assert map_for(tmp_path / "a.mf4", maps) == "can.toml"
+    assert map_for(bag, maps) == "any.toml"
+    assert map_for(tmp_path / "c.csv", maps) is None
+    assert map_for(tmp_path / "c.csv", [("csv.toml", "tabular")]) == "csv.toml"
+    with pytest.raises(BatchError, match=r"b_bag: a raw recording needs a map \(--map\) for ros2 "
+                                         r"sources; the maps given are for mdf"):
+        map_for(bag, [("can.toml", "mdf")])
+    with pytest.raises(BatchError, match=r"2 maps apply to its kind \(mdf\).*give each map's "
+                                         r"\[source\] kind"):
+        map_for(tmp_path / "a.mf4", [("x.toml", "mdf"), ("y.toml", "mdf")])
+    bad = tmp_path / "bad.toml"
+    bad.write_text("[output]\nrate = 100\n")
+    r = CliRunner().invoke(app, ["batch", str(tmp_path), "--map", str(bad), "--out",
+                                 str(tmp_path / "o"), "--scheduler", "synchronous"])
+    assert r.exit_code == 2 and "[channels] is missing" in _flat(r.output)
