@@ -267,7 +267,8 @@ def test_map_tasks_keeps_item_order_and_propagates_errors():
 
 def test_missing_dask_is_a_clear_error(monkeypatch: pytest.MonkeyPatch):
     monkeypatch.setitem(sys.modules, "distributed", None)  # as if vestim[batch] were not installed
-    with pytest.raises(MissingDependencyError, match=r"vestim\[batch\]"), open_runner(None):
+    with pytest.raises(MissingDependencyError, match=r"vestim\[batch\].*--scheduler synchronous"), \
+            open_runner(None):
         pass
     with open_runner("synchronous") as runner:  # needs no Dask
         assert runner.map(abs, [-2]) == [2]
@@ -309,3 +310,139 @@ def test_outputs_are_never_written_into_the_inputs(logs: Path, tmp_path: Path):
     run_batch(_inputs(logs), "auto", tmp_path / "o", scheduler="synchronous")
     assert {p.name: p.read_bytes() for p in logs.iterdir()} == before
     assert np.all([not p.name.startswith(".") for p in (tmp_path / "o").iterdir()])  # no temp files
+
+
+# --- raw recordings, own outputs, Ctrl-C, Dask clusters (issue 28) ------------------------------
+
+
+def test_a_raw_recording_needs_a_map(tmp_path: Path):
+    """`vestim batch x.mf4` without --map says so (exit 2), not "cannot tell which vehicle"."""
+    (tmp_path / "x.mf4").write_bytes(b"")
+    r = CliRunner().invoke(app, ["batch", str(tmp_path / "x.mf4"), "--out", str(tmp_path / "o"),
+                                 "--scheduler", "synchronous"])
+    assert r.exit_code == 2 and "a raw recording needs a map (--map" in _flat(r.output)
+    with pytest.raises(BatchError, match="needs a map"):
+        collect_logs([tmp_path / "x.mf4"])
+    assert collect_logs([tmp_path], raw=True) == [tmp_path / "x.mf4"]
+
+
+def test_folder_scan_skips_vestims_own_outputs(logs: Path, tmp_path: Path):
+    """A folder holding logs and the estimates of an earlier run (written next to them, and one
+    renamed so only its metadata tells) yields only the logs: 3, not 3 + 2 + summary."""
+    d = tmp_path / "mixed"
+    shutil.copytree(logs, d)
+    for p in d.glob("*.parquet"):
+        if p.name.startswith(("corrupt", "launch")):
+            p.unlink()
+    run_batch([d / "step_steer.parquet", d / "coast.csv"], "auto", d, scheduler="synchronous")
+    (d / "step_steer_estimate.parquet").rename(d / "renamed.parquet")  # only metadata tells
+    found = [p.name for p in collect_logs([d])]
+    assert found == ["bad_columns.csv", "coast.csv", "step_steer.parquet"], found
+
+
+def test_ctrl_c_names_what_finished_and_how_to_resume(logs: Path, tmp_path: Path,
+                                                      monkeypatch: pytest.MonkeyPatch):
+    """Ctrl-C after the first log: BatchInterrupted lists it (its output is complete); the CLI
+    prints that and exits 130; the same command then skips it."""
+    from vestim.batch import BatchInterrupted
+
+    def stop(done: int, _total: int) -> None:
+        if done == 1:
+            raise KeyboardInterrupt
+
+    out = tmp_path / "o"
+    two = [logs / "coast.csv", logs / "step_steer.parquet"]
+    with pytest.raises(BatchInterrupted, match=r"interrupted: 1 of 2 logs finished \(coast.csv"
+                                               r".*Run the same command again to resume") as info:
+        run_batch(two, "auto", out, scheduler="synchronous", progress=stop)
+    assert info.value.finished == [str(logs / "coast.csv")]  # the larger file runs first
+    again = run_batch(two, "auto", out, scheduler="synchronous")
+    assert list(again.table["status"]) == ["skipped", "ok"]
+
+    def interrupted(*_a: object, **_k: object) -> None:
+        raise BatchInterrupted([str(two[0])], 2, out)
+
+    monkeypatch.setattr("vestim.batch.run_batch", interrupted)
+    r = CliRunner().invoke(app, ["batch", *map(str, two), "--out", str(out)])
+    assert r.exit_code == 130 and "1 of 2 logs finished" in _flat(r.output)
+    assert "Traceback" not in r.output
+
+
+class _Deadline:
+    """Fail, rather than hang, if the block runs longer than ``seconds`` (SIGALRM, Unix)."""
+
+    def __init__(self, seconds: int) -> None:
+        self.seconds = seconds
+
+    def __enter__(self) -> None:
+        import signal
+
+        def fail(*_a: object) -> None:
+            raise TimeoutError(f"Dask test ran over {self.seconds} s")
+
+        self._old = signal.signal(signal.SIGALRM, fail)
+        signal.alarm(self.seconds)
+
+    def __exit__(self, *_exc: object) -> None:
+        import signal
+
+        signal.alarm(0)
+        signal.signal(signal.SIGALRM, self._old)
+
+
+def test_existing_cluster_by_address_and_local_scratch_cleanup(logs: Path, tmp_path: Path,
+                                                               monkeypatch: pytest.MonkeyPatch):
+    """`--scheduler tcp://…` runs on a running cluster (a LocalCluster of 1 process, always
+    closed): the estimate is the in-process one bit for bit. A local cluster started by
+    vestim with a dashboard gives its link and leaves no dask-scratch-space in the temp
+    folder. Each part has 120 s before it fails (never hangs)."""
+    distributed = pytest.importorskip("distributed")
+    import tempfile
+
+    with _Deadline(120):
+        cluster = distributed.LocalCluster(processes=True, n_workers=1, threads_per_worker=1,
+                                           dashboard_address=None, local_directory=str(tmp_path / "w"))
+        try:
+            summary = run_batch([logs / "coast.csv"], "auto", tmp_path / "o",
+                                scheduler=cluster.scheduler_address)
+        finally:
+            cluster.close()
+    assert summary.workers == 1 and summary.count("ok") == 1
+    _assert_bit_identical(read_log(tmp_path / "o" / "coast_estimate.parquet"),
+                          _single_run(logs / "coast.csv", "compact_car"))
+    scratch_root = tmp_path / "tmp"
+    scratch_root.mkdir()
+    monkeypatch.setattr(tempfile, "tempdir", str(scratch_root))
+    links: list[str] = []
+    with _Deadline(120):
+        run_batch([logs / "coast.csv"], "auto", tmp_path / "o2", n_workers=1, dashboard=links.append)
+    assert len(links) == 1 and links[0].startswith("http")
+    assert list(scratch_root.rglob("dask-scratch-space")) == []
+
+
+def test_a_map_per_source_kind(tmp_path: Path):
+    """A recording takes the map of its kind, else the one without a kind; a spec log (CSV)
+    takes none unless a map says kind = "tabular"; none or two that fit are named errors."""
+    from vestim.batch import map_for
+
+    (tmp_path / "a.mf4").write_bytes(b"")
+    bag = tmp_path / "b_bag"
+    bag.mkdir()
+    (bag / "metadata.yaml").write_text("rosbag2_bagfile_information: {}\n")
+    (tmp_path / "c.csv").write_text("t\n0\n")
+    maps = [("can.toml", "mdf"), ("any.toml", None)]
+    assert map_for(tmp_path / "a.mf4", maps) == "can.toml"
+    assert map_for(bag, maps) == "any.toml"
+    assert map_for(tmp_path / "c.csv", maps) is None
+    assert map_for(tmp_path / "c.csv", [("csv.toml", "tabular")]) == "csv.toml"
+    with pytest.raises(BatchError, match=r"b_bag: a raw recording needs a map \(--map\) for ros2 "
+                                         r"sources; the maps given are for mdf"):
+        map_for(bag, [("can.toml", "mdf")])
+    with pytest.raises(BatchError, match=r"2 maps apply to its kind \(mdf\).*give each map's "
+                                         r"\[source\] kind"):
+        map_for(tmp_path / "a.mf4", [("x.toml", "mdf"), ("y.toml", "mdf")])
+    bad = tmp_path / "bad.toml"
+    bad.write_text("[output]\nrate = 100\n")
+    r = CliRunner().invoke(app, ["batch", str(tmp_path), "--map", str(bad), "--out",
+                                 str(tmp_path / "o"), "--scheduler", "synchronous"])
+    assert r.exit_code == 2 and "[channels] is missing" in _flat(r.output)

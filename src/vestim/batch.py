@@ -25,6 +25,18 @@ is reused); any change of input, vehicle, configuration or vestim code recompute
 Outputs are written atomically, so an output that exists is complete. ``force=True``
 (``--force``) recomputes everything (e.g. after upgrading NumPy or Numba).
 
+Raw recordings (``--map``): MDF4 files, ROS 2 bags (and, with a tabular map, CSV/Parquet
+sources) are imported through a channel map (:func:`vestim.io.channel_map.apply_channel_map`)
+inside their task; several maps may be given, one per source kind (``[source] kind``, or a
+map without one for every kind). The key then also covers the map and its DBC files. A raw
+recording without a map is refused: "a raw recording needs a map (--map)". A folder scan
+skips vestim's own outputs (estimates and summaries, recognised by their metadata or their
+``_estimate`` suffix).
+
+Interrupting (Ctrl-C) raises :class:`BatchInterrupted` naming the logs that finished; their
+outputs are complete and are skipped when the same command runs again. A local cluster's
+scratch space (Dask's ``dask-scratch-space``) lives in a temporary folder removed on exit.
+
 Failures: a log that cannot be read, has bad columns or whose vehicle cannot be found does
 not stop the others; its row has ``status = "failed"`` and the error message.
 
@@ -42,6 +54,7 @@ import json
 import logging
 import math
 import os
+import tempfile
 import time
 from collections.abc import Callable, Iterable, Iterator, Sequence
 from contextlib import contextmanager
@@ -55,7 +68,13 @@ import pyarrow as pa
 import pyarrow.parquet as pq
 
 from vestim.constants import CORNERS
-from vestim.errors import LogFormatError, VehicleFileError, VestimError, optional_import
+from vestim.errors import (
+    LogFormatError,
+    MissingDependencyError,
+    VehicleFileError,
+    VestimError,
+    optional_import,
+)
 from vestim.io import load_vehicle, read_log, write_log
 from vestim.io.files import atomic_path, write_text_atomic
 from vestim.io.log import METADATA_PREFIX
@@ -68,9 +87,13 @@ __all__ = [
     "SUMMARY_COLUMNS",
     "SYNCHRONOUS",
     "BatchError",
+    "BatchInterrupted",
     "BatchSummary",
     "TaskRunner",
     "collect_logs",
+    "is_raw",
+    "is_vestim_output",
+    "map_for",
     "map_tasks",
     "open_runner",
     "output_path",
@@ -85,6 +108,11 @@ AUTO = "auto"
 """Vehicle name: find each log's vehicle with :func:`vehicle_for_log`."""
 LOG_SUFFIXES = (".parquet", ".pq", ".csv")
 """Files a directory argument contributes (not recursive)."""
+RAW_SUFFIXES = (".mf4", ".mdf", ".db3", ".mcap")
+"""Raw recordings a directory argument also contributes when a map is given (with ROS 2 bag
+folders, those holding a ``metadata.yaml``)."""
+OUTPUT_SUFFIX = "_estimate"
+"""Stem suffix of the estimates :func:`run_batch` writes (:func:`output_path`)."""
 BATCH_FORMAT = "1"
 """Version of the key and summary-row layout stored in the outputs (part of the key)."""
 
@@ -117,6 +145,20 @@ class BatchError(VestimError, ValueError):
     """A batch that cannot start: no logs, clashing output names, an unknown scheduler."""
 
 
+class BatchInterrupted(VestimError, KeyboardInterrupt):  # noqa: N818 - a KeyboardInterrupt
+    """The batch was interrupted (Ctrl-C); ``finished`` lists the logs whose outputs this run
+    wrote (complete, skipped when the same command runs again), ``total`` the logs asked for."""
+
+    def __init__(self, finished: list[str], total: int, out_dir: Path) -> None:
+        self.finished, self.total, self.out_dir = finished, total, out_dir
+        names = ", ".join(Path(f).name for f in finished[:10]) + (" …" if len(finished) > 10 else "")
+        super().__init__(
+            f"interrupted: {len(finished)} of {total} logs finished"
+            + (f" ({names})" if finished else "")
+            + f"; their estimates in {out_dir} are complete. Run the same command again to "
+            "resume: finished logs are skipped")
+
+
 # ---------------------------------------------------------------------------- task map
 
 def _star(fn: Callable[..., Any], args: Sequence[Any]) -> Any:
@@ -128,6 +170,11 @@ class TaskRunner:
 
     def __init__(self, client: Any | None = None) -> None:
         self.client = client
+
+    @property
+    def dashboard_link(self) -> str | None:
+        """The Dask dashboard's address (None in-process)."""
+        return None if self.client is None else str(self.client.dashboard_link)
 
     @property
     def n_workers(self) -> int:
@@ -171,44 +218,62 @@ class TaskRunner:
 
 @contextmanager
 def open_runner(scheduler: str | None = None, n_workers: int = 2, *,
-                connect_timeout: float = 10.0) -> Iterator[TaskRunner]:
+                connect_timeout: float = 10.0, dashboard: bool = False) -> Iterator[TaskRunner]:
     """A :class:`TaskRunner` for the scheduler, closed (cluster stopped) on exit.
 
     Args:
         scheduler: ``None`` or ``"local"``: a new ``LocalCluster`` of ``n_workers`` worker
-            processes, one thread each, ``NUMBA_NUM_THREADS=1``; ``"synchronous"``: this
-            process, no Dask; anything else: the address of a running Dask scheduler
-            (``tcp://host:8786``).
+            processes, one thread each, ``NUMBA_NUM_THREADS=1``, its scratch space in a
+            temporary folder removed on exit; ``"synchronous"``: this process, no Dask;
+            anything else: the address of a running Dask scheduler (``tcp://host:8786``).
         n_workers: worker processes of the local cluster (>= 1).
         connect_timeout: seconds to wait for a scheduler given by address.
+        dashboard: serve the local cluster's dashboard (on a free port; needs bokeh).
 
     Raises:
-        MissingDependencyError: dask.distributed is not installed (``vestim[batch]``).
+        MissingDependencyError: dask.distributed is not installed (``vestim[batch]``); the
+            message says that ``scheduler="synchronous"`` works without it.
         BatchError: ``n_workers`` < 1, or the scheduler cannot be reached.
     """
     if scheduler == SYNCHRONOUS:
         yield TaskRunner(None)
         return
-    distributed = optional_import("distributed", "batch", "Parallel batches (vestim[batch])")
+    try:
+        distributed = optional_import("distributed", "batch", "Parallel batches (vestim[batch])")
+    except MissingDependencyError as exc:
+        raise MissingDependencyError(f"{exc}; or run the logs one after the other in this process "
+                                     "with --scheduler synchronous (scheduler=\"synchronous\"), "
+                                     "which needs no Dask") from None
     if scheduler in (None, "local"):
         if n_workers < 1:
             raise BatchError(f"n_workers = {n_workers}: use at least 1 worker process")
+        import dask
+
+        scratch = tempfile.TemporaryDirectory(prefix="vestim-dask-")
+        # Dask puts its dask-scratch-space in its temporary-directory (the system's temp folder
+        # by default) and leaves it behind: point it, and the workers, into ours.
+        config = dask.config.set({"temporary-directory": scratch.name})
         try:
-            cluster = distributed.LocalCluster(
-                n_workers=n_workers, threads_per_worker=1, processes=True, dashboard_address=None,
-                silence_logs=logging.ERROR,
-                env={"NUMBA_NUM_THREADS": "1", "OMP_NUM_THREADS": "1", "MKL_NUM_THREADS": "1",
-                     "OPENBLAS_NUM_THREADS": "1"})
-        except RuntimeError as exc:
-            raise BatchError(
-                f"the local Dask cluster did not start ({exc}); a script that starts one must do "
-                "so under `if __name__ == \"__main__\":` (worker processes are spawned and "
-                "import the script), or use scheduler=\"synchronous\"") from None
-        try:
-            with distributed.Client(cluster) as client:
-                yield TaskRunner(client)
+            try:
+                cluster = distributed.LocalCluster(
+                    n_workers=n_workers, threads_per_worker=1, processes=True,
+                    dashboard_address=":0" if dashboard else None, local_directory=scratch.name,
+                    silence_logs=logging.ERROR,
+                    env={"NUMBA_NUM_THREADS": "1", "OMP_NUM_THREADS": "1", "MKL_NUM_THREADS": "1",
+                         "OPENBLAS_NUM_THREADS": "1"})
+            except RuntimeError as exc:
+                raise BatchError(
+                    f"the local Dask cluster did not start ({exc}); a script that starts one must "
+                    "do so under `if __name__ == \"__main__\":` (worker processes are spawned and "
+                    "import the script), or use scheduler=\"synchronous\"") from None
+            try:
+                with distributed.Client(cluster) as client:
+                    yield TaskRunner(client)
+            finally:
+                cluster.close()
         finally:
-            cluster.close()
+            config.__exit__(None, None, None)
+            scratch.cleanup()
         return
     try:
         client = distributed.Client(scheduler, timeout=f"{connect_timeout}s")
@@ -231,39 +296,72 @@ def map_tasks(fn: Callable[..., Any], items: Iterable[Any], *, scheduler: str | 
 
 # ---------------------------------------------------------------------------- inputs
 
+def is_raw(path: Path) -> bool:
+    """True for a raw recording (MDF4 file, ROS 2 bag file or folder, numpy folder): a source
+    that only a channel map turns into a log."""
+    return path.is_dir() or path.suffix.lower() in RAW_SUFFIXES
+
+
+def is_vestim_output(path: Path) -> bool:
+    """True for a file vestim wrote as an output: an estimate (``vestim estimate``, ``vestim
+    batch``: its Parquet metadata names the pipeline's stages, or its stem ends in
+    ``_estimate``) or a batch summary."""
+    if path.stem.endswith(OUTPUT_SUFFIX) or path.name in ("summary.parquet", "summary.md"):
+        return True
+    if path.suffix.lower() not in (".parquet", ".pq"):
+        return False
+    try:
+        meta = pq.read_schema(path).metadata or {}
+    except (pa.ArrowException, OSError):
+        return False
+    keys = {(METADATA_PREFIX + k).encode() for k in ("velocity", "fusion", "batch_wall_s")}
+    return bool(keys & set(meta))
+
+
 def collect_logs(paths: Iterable[str | os.PathLike[str]],
-                 exclude: str | os.PathLike[str] | None = None) -> list[Path]:
+                 exclude: str | os.PathLike[str] | None = None, *, raw: bool = False) -> list[Path]:
     """The logs named by files and directories, in the given order (directories sorted).
 
     A file is taken as it is (a wrong extension fails later, as that log's error); a
-    directory contributes its ``*.parquet``, ``*.pq`` and ``*.csv`` files (not recursive).
-    The directory ``exclude`` (the output folder) is never scanned.
+    directory contributes its ``*.parquet``, ``*.pq`` and ``*.csv`` files (not recursive)
+    but not vestim's own outputs (:func:`is_vestim_output`); with ``raw`` (a map is given)
+    also its ``*.mf4``, ``*.mdf``, ``*.db3``, ``*.mcap`` files and ROS 2 bag folders. The
+    directory ``exclude`` (the output folder) is never scanned.
 
     Raises:
-        BatchError: a path that does not exist, or no log at all.
+        BatchError: a path that does not exist, a raw recording without ``raw`` ("a raw
+            recording needs a map"), or no log at all.
     """
     out: list[Path] = []
     skip = Path(exclude).resolve() if exclude is not None else None
-    for raw in paths:
-        p = Path(raw)
-        if p.is_dir():
+    suffixes = LOG_SUFFIXES + (RAW_SUFFIXES if raw else ())
+    for arg in paths:
+        p = Path(arg)
+        if p.is_dir() and not (p / "metadata.yaml").is_file():
             if skip is not None and p.resolve() == skip:
                 continue
-            out.extend(sorted(f for f in p.iterdir()
-                              if f.is_file() and f.suffix.lower() in LOG_SUFFIXES))
+            for f in sorted(p.iterdir()):
+                log_file = f.is_file() and f.suffix.lower() in suffixes and not is_vestim_output(f)
+                if log_file or (raw and f.is_dir() and (f / "metadata.yaml").is_file()):
+                    out.append(f)
         elif p.exists():
+            if is_raw(p) and not raw:
+                raise BatchError(f"{p}: a raw recording needs a map (--map MAP.toml, "
+                                 "docs/channel-map.md) to be read as a drive log")
             out.append(p)
         else:
             raise BatchError(f"{p}: no such file or directory; give log files (.parquet, .csv) "
                              "or folders holding them")
     if not out:
-        raise BatchError("no logs found: the folders hold no .parquet, .pq or .csv files")
+        raise BatchError("no logs found: the folders hold no "
+                         + (".parquet, .pq, .csv, .mf4, .mdf, .db3, .mcap files or bag folders"
+                            if raw else ".parquet, .pq or .csv files"))
     return out
 
 
 def output_path(log: str | os.PathLike[str], out_dir: str | os.PathLike[str]) -> Path:
     """Where :func:`run_batch` writes the estimate of ``log``: ``<out_dir>/<stem>_estimate.parquet``."""
-    return Path(out_dir) / f"{Path(log).stem}_estimate.parquet"
+    return Path(out_dir) / f"{Path(log).stem}{OUTPUT_SUFFIX}.parquet"
 
 
 def _parquet_metadata(path: Path) -> dict[bytes, bytes]:
@@ -369,15 +467,34 @@ def _code_digest() -> str:
     return h.hexdigest()
 
 
-def _job_key(log: Path, vehicle: Vehicle, config: PipelineConfig) -> str:
+def _input_digest(path: Path) -> str:
+    """SHA-256 of a file, or of a folder's files (a ROS 2 bag) by relative name and content."""
+    if not path.is_dir():
+        return _file_digest(path)
+    h = hashlib.sha256()
+    for f in sorted(q for q in path.rglob("*") if q.is_file()):
+        h.update(f.relative_to(path).as_posix().encode())
+        h.update(_file_digest(f).encode())
+    return h.hexdigest()
+
+
+def _job_key(log: Path, vehicle: Vehicle, config: PipelineConfig, channel_map: str | None = None
+             ) -> str:
     from vestim import __version__
 
-    parts = {"format": BATCH_FORMAT, "vestim": __version__, "code": _code_digest(),
-             "input": _file_digest(log),
+    parts: dict[str, Any] = {
+             "format": BATCH_FORMAT, "vestim": __version__, "code": _code_digest(),
+             "input": _input_digest(log),
              "vehicle": _canonical(vehicle), "config": _canonical(config)}
     if config.gains:
         gains = Path(config.gains)
         parts["gains"] = _file_digest(gains) if gains.is_file() else "missing"
+    if channel_map is not None:  # the map and the DBC files it names decide the imported log
+        from vestim.io.channel_map import load_channel_map
+
+        cmap = load_channel_map(channel_map)
+        parts["map"] = [_file_digest(Path(channel_map)),
+                        *(_file_digest(d) if d.is_file() else "missing" for d in cmap.dbc)]
     text = json.dumps(parts, sort_keys=True, separators=(",", ":"))
     return hashlib.sha256(text.encode()).hexdigest()
 
@@ -404,6 +521,40 @@ def _stored_row(out: Path, key: str) -> dict[str, Any] | None:
 
 # ---------------------------------------------------------------------------- one log
 
+def _import(path: Path, channel_map: str, wheel_radius: float) -> tuple[pd.DataFrame, dict[str, str]]:
+    """A raw recording through its channel map, checked as a log to estimate; the log and the
+    import's metadata (``import.*``: map, clock offset, gaps, mounting)."""
+    from vestim.io.channel_map import apply_channel_map, load_channel_map
+    from vestim.io.log import validate_log
+
+    log, report = apply_channel_map(path, load_channel_map(channel_map))
+    validate_log(log, require=["measured"], wheel_radius=wheel_radius,
+                 source=f"{path} (through {channel_map})")
+    return log, report.metadata()
+
+
+def map_for(path: Path, maps: Sequence[tuple[str, str | None]]) -> str | None:
+    """The map of ``(map path, [source] kind)`` pairs that applies to ``path``: the one of its
+    source kind, else the one without a kind; None for a spec log (CSV/Parquet) no map claims.
+
+    Raises:
+        BatchError: a raw recording no map applies to, or several that do.
+    """
+    from vestim.io.readers import source_kind
+
+    kind = source_kind(path)
+    fits = [m for m, k in maps if k == kind] or [m for m, k in maps if k is None]
+    if kind == "tabular" and not [m for m, k in maps if k == kind]:
+        return None  # a CSV/Parquet beside raw files is a spec log unless a map says kind = tabular
+    if not fits:
+        raise BatchError(f"{path}: a raw recording needs a map (--map) for {kind} sources; the "
+                         "maps given are for " + ", ".join(sorted({k or "any" for _, k in maps})))
+    if len(fits) > 1:
+        raise BatchError(f"{path}: {len(fits)} maps apply to its kind ({kind}): "
+                         f"{', '.join(fits)}; give each map's [source] kind")
+    return fits[0]
+
+
 @dataclass(frozen=True)
 class _Job:
     log: str
@@ -411,6 +562,7 @@ class _Job:
     config: PipelineConfig
     out: str
     force: bool
+    channel_map: str | None = None
 
 
 def _scores(est: pd.DataFrame, log: pd.DataFrame) -> dict[str, float]:
@@ -453,14 +605,18 @@ def _run_one(job: _Job) -> dict[str, Any]:
     path, out = Path(job.log), Path(job.out)
     try:
         veh = job.vehicle if isinstance(job.vehicle, Vehicle) else load_vehicle(job.vehicle)
-        key = _job_key(path, veh, job.config)
+        key = _job_key(path, veh, job.config, job.channel_map)
         stored = None if job.force else _stored_row(out, key)
         if stored is not None:
             row.update({k: stored[k] for k in row if k in stored})
             row.update(status="skipped", error="", log=job.log, output=job.out,
                        vehicle=_vehicle_label(job.vehicle), wall_s=time.perf_counter() - t0)
             return row
-        log = read_log(path, require=["measured"], wheel_radius=veh.body.wheel_radius)
+        imported: dict[str, str] = {}
+        if job.channel_map is None:
+            log = read_log(path, require=["measured"], wheel_radius=veh.body.wheel_radius)
+        else:
+            log, imported = _import(path, job.channel_map, veh.body.wheel_radius)
         pipe = Pipeline(veh, job.config)
         est = pipe.run(log)
         row.update(status="ok", output=job.out, samples=len(est), **_scores(est, log),
@@ -469,7 +625,7 @@ def _run_one(job: _Job) -> dict[str, Any]:
         cfg = job.config
         meta = {"vehicle": veh.name, "force": cfg.force, "normal": cfg.normal,
                 "velocity": cfg.velocity, "fusion": cfg.fusion, "source": job.log,
-                **pipe.force.input_sources, "batch_key": key,
+                **pipe.force.input_sources, **imported, "batch_key": key,
                 "batch_row": json.dumps({k: v for k, v in row.items()
                                          if k not in ("log", "output", "status", "error")})}
         write_log(est, out, metadata=meta, float32=True)  # as `vestim estimate` writes
@@ -523,6 +679,8 @@ def run_batch(
     n_workers: int = 2,
     force: bool = False,
     progress: Callable[[int, int], None] | None = None,
+    maps: Sequence[str | os.PathLike[str]] = (),
+    dashboard: Callable[[str], None] | None = None,
 ) -> BatchSummary:
     """Estimate every log (one Dask task each); write the estimates and the summary.
 
@@ -538,13 +696,18 @@ def run_batch(
         n_workers: worker processes of a local cluster.
         force: recompute logs whose output is up to date.
         progress: ``progress(done, total)`` after each finished log.
+        maps: channel maps (TOML) through which raw recordings are imported, one per source
+            kind (:func:`map_for`); their DBC paths are taken from the map's folder.
+        dashboard: called with the Dask dashboard's address once the cluster is up (a
+            local cluster then serves one); None: no dashboard.
 
     Returns:
         The summary; failed logs are rows with ``status = "failed"``, never exceptions.
 
     Raises:
         BatchError: no logs, two logs with the same stem (same output), or a scheduler that
-            cannot be used. MissingDependencyError: Dask missing for a Dask scheduler.
+            cannot be used. ChannelMapError: an invalid map. MissingDependencyError: Dask
+            missing for a Dask scheduler. BatchInterrupted: Ctrl-C (what finished is named).
     """
     t0 = time.perf_counter()
     cfg = config or PipelineConfig()
@@ -559,10 +722,17 @@ def run_batch(
             raise BatchError(f"{seen[o]} and {p} would both write {o} (same file stem); rename "
                              "one or run them into different --out folders")
         seen[o] = p
+    from vestim.io.channel_map import load_channel_map
+
+    map_kinds = [(str(m), load_channel_map(m).kind) for m in maps]
     rows: dict[int, dict[str, Any]] = {}
     jobs: list[tuple[int, _Job]] = []
     for i, p in enumerate(paths):
         try:
+            cmap = map_for(p, map_kinds) if map_kinds else None
+            if cmap is None and is_raw(p):
+                raise BatchError(f"{p}: a raw recording needs a map (--map MAP.toml, "
+                                 "docs/channel-map.md) to be read as a drive log")
             if callable(vehicle) and not isinstance(vehicle, Vehicle):
                 veh: str | Vehicle = _as_vehicle_arg(vehicle(p))
             elif isinstance(vehicle, Vehicle):
@@ -576,7 +746,7 @@ def run_batch(
             row["error"] = str(exc) if isinstance(exc, VestimError) else f"{type(exc).__name__}: {exc}"
             rows[i] = row
             continue
-        jobs.append((i, _Job(str(p), veh, cfg, str(output_path(p, out)), force)))
+        jobs.append((i, _Job(str(p), veh, cfg, str(output_path(p, out)), force, cmap)))
     # Largest inputs first: the last task to start is a short one (better balance).
     jobs.sort(key=lambda ij: -_size(Path(ij[1].log)))
     total = len(paths)
@@ -586,9 +756,16 @@ def run_batch(
     step = None if progress is None else (lambda d, _n: progress(done0 + d, total))
     workers = 1
     if jobs:
-        with open_runner(scheduler, n_workers) as runner:
-            workers = runner.n_workers
-            results = runner.map(_run_one, [j for _, j in jobs], progress=step)
+        started = time.time()
+        try:
+            with open_runner(scheduler, n_workers, dashboard=dashboard is not None) as runner:
+                workers = runner.n_workers
+                if dashboard is not None and runner.dashboard_link:
+                    dashboard(runner.dashboard_link)
+                results = runner.map(_run_one, [j for _, j in jobs], progress=step)
+        except KeyboardInterrupt:
+            finished = [j.log for _, j in jobs if _written_since(Path(j.out), started)]
+            raise BatchInterrupted(finished, total, out) from None
         rows.update({i: r for (i, _), r in zip(jobs, results, strict=True)})
     table = pd.DataFrame([rows[i] for i in range(total)], columns=list(SUMMARY_COLUMNS))
     table["samples"] = table["samples"].astype("int64")
@@ -596,6 +773,13 @@ def run_batch(
     wall = time.perf_counter() - t0
     pq_path, md_path = _write_summary(table, out, wall, workers, scheduler)
     return BatchSummary(table, pq_path, md_path, wall, workers)
+
+
+def _written_since(path: Path, since: float) -> bool:
+    try:
+        return path.stat().st_mtime >= since - 1.0
+    except OSError:
+        return False
 
 
 def _as_vehicle_arg(v: Any) -> str | Vehicle:

@@ -400,6 +400,47 @@ def import_cmd(
                                      f"{len(log.columns) - 1} channels)"))
 
 
+@app.command("channels")
+def channels_cmd(
+    src: Annotated[Path, typer.Argument(metavar="SRC", help="Recording: CSV/Parquet, numpy "
+                                        "folder, MDF4 (.mf4), ROS 2 bag (.db3/.mcap/folder).")],
+    dbc: Annotated[list[Path] | None, typer.Option("--dbc", help="DBC file decoding the MDF4's "
+                                                   "raw CAN frames (repeat for several buses).")]
+    = None,
+    time: Annotated[str | None, typer.Option("--time", help="CSV/Parquet: the time column "
+                                             "(default t, time or timestamp).")] = None,
+    starter_map: Annotated[bool, typer.Option("--starter-map", help="Instead of the table, print "
+                                              "a starter channel map (TOML) of the spec channels "
+                                              "recognised by name and unit.")] = False,
+) -> None:
+    """List every signal of a recording with its unit, rate and time span (the addresses a
+    channel map names), or print a starter channel map for it."""
+    from rich.table import Table
+
+    from vestim.io.listing import list_signals
+    from vestim.io.listing import starter_map as make_map
+
+    try:
+        listing = list_signals(src, dbc=dbc or (), time=time)
+    except (VestimError, ValueError, OSError) as exc:
+        raise _fail(exc) from None
+    if starter_map:
+        typer.echo(make_map(listing.signals, dbc=[p.resolve() for p in dbc or ()],
+                            time=listing.time), nl=False)
+        return
+    esc = rich.markup.escape
+    table = Table(title=esc(f"{src} ({listing.kind}): {len(listing.signals)} signals"))
+    for col, justify in (("signal", "left"), ("unit", "left"), ("samples", "right"),
+                         ("rate Hz", "right"), ("start s", "right"), ("end s", "right")):
+        table.add_column(col, justify=justify)  # type: ignore[arg-type]
+    for s in listing.signals:
+        table.add_row(esc(s.address), esc(s.unit or "-"), str(s.samples), f"{s.rate_hz:.4g}",
+                      f"{s.t_start:.6g}", f"{s.t_end:.6g}")
+    Console(soft_wrap=True).print(table)
+    for note in listing.notes:
+        console.print(f"note: {esc(note)}")
+
+
 @app.command("calibrate")
 def calibrate_cmd(
     logs: Annotated[list[Path], typer.Argument(metavar="LOG...", help="Drive logs of one car "
@@ -513,7 +554,8 @@ def report_cmd(
 @app.command("batch")
 def batch_cmd(
     logs: Annotated[list[Path], typer.Argument(metavar="LOGS...", help="Log files and/or folders "
-                                               "(every *.parquet, *.pq, *.csv inside).")],
+                                               "(every *.parquet, *.pq, *.csv inside; with --map "
+                                               "also *.mf4, *.db3, *.mcap and bag folders).")],
     out: Annotated[Path, typer.Option("--out", help="Output folder: <stem>_estimate.parquet per "
                                       "log, summary.parquet, summary.md.")],
     vehicle: Annotated[str, typer.Option("--vehicle", help="Vehicle TOML or built-in name for "
@@ -527,23 +569,46 @@ def batch_cmd(
     config: Annotated[Path | None, typer.Option(help="TOML file with a [pipeline] table.")] = None,
     force: Annotated[bool, typer.Option("--force", help="Recompute logs whose output is up to "
                                         "date.")] = False,
+    map_paths: Annotated[list[Path] | None, typer.Option(
+        "--map", help="Channel map (TOML, docs/channel-map.md) importing the raw recordings "
+        "(MDF4, ROS 2 bags); repeat with one map per source kind ([source] kind).")] = None,
+    dashboard: Annotated[bool, typer.Option("--dashboard", help="Serve Dask's dashboard, print "
+                                            "its link and open it in a browser.")] = False,
 ) -> None:
-    """Estimate many logs in parallel on Dask; exit 1 if any log failed (see summary.md)."""
+    """Estimate many logs in parallel on Dask; exit 1 if any log failed (see summary.md),
+    130 if interrupted (run the same command again to resume)."""
     from rich.markup import escape
 
-    from vestim.batch import collect_logs, run_batch
+    from vestim.batch import BatchInterrupted, collect_logs, run_batch
     from vestim.pipeline import PipelineConfig
+
+    def show_dashboard(link: str) -> None:
+        import importlib.util
+        import webbrowser
+
+        console.print(f"Dask dashboard: {escape(link)}")
+        if importlib.util.find_spec("bokeh") is None:
+            console.print("note: Dask's dashboard needs bokeh, which is not installed (pip "
+                          "install bokeh); the batch runs without it")
+        elif console.is_terminal:
+            webbrowser.open(link)
 
     try:
         cfg = PipelineConfig.from_toml(config) if config is not None else None
-        paths = collect_logs(logs, exclude=out)
+        paths = collect_logs(logs, exclude=out, raw=bool(map_paths))
         with Progress(TextColumn("{task.description}"), BarColumn(), TextColumn("{task.completed}/"
                       "{task.total}"), TimeElapsedColumn(), console=console, transient=True,
                       disable=not console.is_terminal) as bar:
             task = bar.add_task(f"{len(paths)} logs", total=len(paths))
             summary = run_batch(paths, vehicle, out, config=cfg, scheduler=scheduler,
-                                n_workers=workers, force=force,
+                                n_workers=workers, force=force, maps=map_paths or (),
+                                dashboard=show_dashboard if dashboard else None,
                                 progress=lambda done, _n: bar.update(task, completed=done))
+    except (BatchInterrupted, KeyboardInterrupt) as exc:
+        text = str(exc) if isinstance(exc, BatchInterrupted) else (
+            "interrupted; run the same command again to resume: finished logs are skipped")
+        console.print(f"[yellow]{escape(text)}[/yellow]")
+        raise typer.Exit(code=130) from None
     except (VestimError, ValueError, OSError) as exc:
         raise _fail(exc) from None
     for row in summary.table[summary.table["status"] == "failed"].itertuples(index=False):

@@ -6,6 +6,7 @@ from __future__ import annotations
 import importlib.util
 import json
 import math
+import re
 import tomllib
 import types
 from pathlib import Path
@@ -62,6 +63,70 @@ IMU = ("ax", "ay", "az", "roll_rate", "pitch_rate", "yaw_rate")
 def test_unit_conversion_to_spec_si(unit, column, value, expected):
     got = unit_factor(unit, column)(np.array([value]))
     assert got[0] == pytest.approx(expected, rel=1e-12)
+
+
+@pytest.mark.parametrize(("unit", "column", "value", "expected"), [
+    ("Nm", "torque_fl", 2.0, 2.0),                       # newton metre, not nanometre
+    ("U/min", "omega_fl", 60.0, 2 * math.pi),            # Umdrehungen: revolutions per minute
+    ("m/s2", "ax", 1.5, 1.5),
+    ("dps", "yaw_rate", 180.0, math.pi),
+    ("%", "slip_ratio_fl", 12.0, 0.12),
+    ("kph", "gnss_speed", 36.0, 10.0),
+])
+def test_dbc_unit_vocabulary(unit, column, value, expected):
+    """The spellings real DBCs use parse to what they mean (issue 28)."""
+    assert unit_factor(unit, column)(np.array([value]))[0] == pytest.approx(expected, rel=1e-12)
+
+
+@pytest.mark.parametrize("unit", ["1/min", "Hz", "1/s", "min^-1"])
+def test_a_bare_rate_for_an_angular_speed_is_refused(unit):
+    """1/min does not say revolutions or radians (2π apart): refused for ω and the body rates,
+    naming the fix; a ratio such as km/h / m (a speed over a radius) stays rad/s."""
+    with pytest.raises(ChannelMapError, match=rf"'omega_rl': unit '{re.escape(unit)}' is a bare "
+                                              r"rate.*unit = \"rpm\""):
+        unit_factor(unit, "omega_rl")
+    with pytest.raises(ChannelMapError, match="bare rate"):
+        unit_factor(unit, "yaw_rate")
+    assert unit_factor("km/h / m", "omega_rl")(np.array([3.6]))[0] == pytest.approx(1.0)
+
+
+def _spec(unit=None, expr=None, name="omega_fl"):
+    from vestim.io.channel_map import ChannelSpec
+
+    return ChannelSpec(name=name, sources={"src": "WHEEL.Speed"}, unit=unit, expr=expr)
+
+
+def _carrying(unit):
+    return {"src": Stream(np.zeros(2), np.zeros(2), unit)}
+
+
+def test_units_from_the_source():
+    """No unit in the map: the source's (DBC/MDF4) unit; the same unit in another spelling
+    agrees; rpm makes a source's bare 1/min explicit; an expression's unit is not compared."""
+    from vestim.io.channel_map import source_unit
+
+    assert source_unit(_spec(), _carrying("rpm")) == "rpm"
+    assert source_unit(_spec(name="torque_fl"), _carrying("Nm")) == "Nm"
+    assert source_unit(_spec("N*m", name="torque_fl"), _carrying("Nm")) == "N*m"
+    assert source_unit(_spec("rpm"), _carrying("1/min")) == "rpm"
+    assert source_unit(_spec("rad/s"), _carrying(None)) == "rad/s"
+    assert source_unit(_spec("deg/s", expr="src"), _carrying("rad/s")) == "deg/s"
+
+
+def test_unit_contradictions_and_gaps_are_refused():
+    from vestim.io.channel_map import source_unit
+
+    with pytest.raises(ChannelMapError, match=r"\[channels.omega_fl\]: unit = 'deg/s' contradicts the "
+                                              r"unit 'rpm' that source 'WHEEL.Speed' carries; remove "
+                                              r"the map's unit.*expr = \"src\""):
+        source_unit(_spec("deg/s"), _carrying("rpm"))
+    with pytest.raises(ChannelMapError, match="contradicts"):
+        source_unit(_spec("m/s^2", name="ax"), _carrying("g"))  # 9.81 apart
+    with pytest.raises(ChannelMapError, match=r"\[channels.omega_fl\]: unit is missing and source "
+                                              r"'WHEEL.Speed' carries none"):
+        source_unit(_spec(), _carrying(None))
+    with pytest.raises(ChannelMapError, match=r"carries the unit '1/min', a bare rate.*unit = \"rpm\""):
+        source_unit(_spec(), _carrying("1/min"))
 
 
 def test_unit_errors_name_the_channel():
@@ -168,6 +233,44 @@ def test_mounting_matrix_convention():
     np.testing.assert_allclose(rr.T @ rr, np.eye(3), atol=1e-15)
 
 
+def test_mounting_matrix_equals_the_former_rodrigues_matrices():
+    """scipy's Rotation gives the matrices of the hand-written Rodrigues formula it replaced
+    (issue 28; values printed by that code at 1d19098), to float rounding (1e-15)."""
+    old = {(2.0, 3.0, 1.5): [[0.9982873293543426, -0.02429865074186709, 0.05321638490821234],
+                             [0.02614107370998589, 0.9990729584069269, -0.03420333383341344],
+                             [-0.05233595624294383, 0.03553588822803791, 0.9979970682982897]],
+           (-7.0, -4.0, 20.0): [[0.9374035767904598, -0.33014266763711886, -0.11081675516770563],
+                                [0.3411869994463997, 0.9344062847030452, 0.10235392770291608],
+                                [0.0697564737441253, -0.13375617411132149, 0.988556179616458]]}
+    for angles, matrix in old.items():
+        np.testing.assert_allclose(mounting_matrix(*angles), matrix, rtol=0, atol=1e-15)
+    np.testing.assert_array_equal(mounting_matrix(0.0, 0.0, 0.0), np.eye(3))
+
+
+def test_pose_orientation_is_slerp_not_componentwise():
+    """Between two pose samples 90° of yaw apart the orientation turns at a constant rate
+    (Slerp): at 1/4 of the interval it is a 22.5° yaw, exactly (1e-12). The component-wise
+    interpolation it replaced gave atan2(0.25·sin 45°, 0.75 + 0.25·cos 45°)·2 = 21.6° there.
+    Unnormalised samples count as their unit quaternions; outside the samples the first or
+    last orientation holds."""
+    from vestim.io.channel_map import pose_orientation
+
+    t = np.array([0.0, 1.0])
+    half = math.radians(45.0)
+    w, z = np.array([2.0, math.cos(half)]), np.array([0.0, math.sin(half)])  # yaw 0°, then 90°
+    zero = np.zeros(2)
+    rot = pose_orientation(np.array([-1.0, 0.25, 0.5, 2.0]),
+                           (Stream(t, w), Stream(t, zero), Stream(t, zero), Stream(t, z)))
+    yaw = np.degrees(rot.as_euler("ZYX")[:, 0])
+    np.testing.assert_allclose(yaw, [0.0, 22.5, 45.0, 90.0], rtol=0, atol=1e-12)
+    lerp = [np.interp(0.25, t, c) for c in (np.array([1.0, math.cos(half)]), z)]
+    assert abs(math.degrees(2 * math.atan2(lerp[1], lerp[0])) - 21.6) < 0.05
+    with pytest.raises(ChannelMapError, match="zero quaternion"):
+        pose_orientation(t, (Stream(t, zero), Stream(t, zero), Stream(t, zero), Stream(t, zero)))
+    with pytest.raises(ChannelMapError, match="same sample times"):
+        pose_orientation(t, (Stream(t, w), Stream(t + 0.1, zero), Stream(t, zero), Stream(t, z)))
+
+
 # --- resampling -----------------------------------------------------------------------------
 
 
@@ -206,7 +309,8 @@ def _map(channels: dict, **extra) -> dict:
 @pytest.mark.parametrize(("data", "message"), [
     (_map({"omega_xx": {"source": "a", "unit": "rad/s"}}), r"'omega_xx' is not a measured"),
     (_map({"t": {"source": "a", "unit": "s"}}), r"t is implied by the source clocks"),
-    (_map({"ay": {"source": "a"}}), r"\[channels.ay\]: unit is missing.*\"m/s²\""),
+    (_map({"ay": {"source": "a", "expr": "2 * src"}}),
+     r"\[channels.ay\]: unit is missing; an expression's result.*\"m/s²\""),
     (_map({"ay": {"source": "a", "unit": "g", "colour": 1}}), r"unknown key\(s\) colour"),
     (_map({"ay": {"sources": {"a": "x", "b": "y"}, "unit": "g"}}), r"need an expr"),
     (_map({"ay": {"source": "a", "unit": "g", "expr": "src * k"}}), r"unknown name 'k'"),

@@ -51,7 +51,9 @@ __all__ = [
     "load_channel_map",
     "mounting_matrix",
     "parse_expression",
+    "pose_orientation",
     "resample",
+    "source_unit",
     "unit_factor",
 ]
 
@@ -101,37 +103,81 @@ def _spec_unit(unit: str) -> str:
     return unit.replace("·", "*").replace("²", "**2")
 
 
+UNIT_SPELLINGS: dict[str, str] = {
+    "Nm": "N*m", "N.m": "N*m", "N m": "N*m", "kNm": "kN*m",
+    "U/min": "revolution/minute", "u/min": "revolution/minute", "rev/min": "revolution/minute",
+    "rev/s": "revolution/s", "rps": "revolution/s",
+    "dps": "deg/s", "°/s": "deg/s", "°": "deg", "deg/sec": "deg/s", "rad/sec": "rad/s",
+    "m/s2": "m/s^2", "m/s²": "m/s^2", "m/s/s": "m/s^2", "m/sec2": "m/s^2", "m/sec^2": "m/s^2",
+    "kph": "km/h", "kmh": "km/h", "-": "dimensionless", "": "dimensionless",
+}
+"""Unit spellings of real DBC and MDF4 files that pint does not read as meant, and what they
+mean: ``Nm`` (newton metre, not nanometre), ``U/min`` (German Umdrehungen, revolutions per
+minute), ``dps`` (degrees per second), ``m/s2`` (m/s²), ``%`` is pint's own percent."""
+
+
+def _parse_unit(unit: str, column: str) -> Any:
+    """``unit`` as a pint Unit (after :data:`UNIT_SPELLINGS`; ``g`` is standard gravity for
+    an acceleration), or a ChannelMapError naming the channel."""
+    import pint
+
+    ureg = _ureg()
+    text = UNIT_SPELLINGS.get(unit.strip(), unit.strip())
+    target = ch.unit_of(column)
+    if text in ("g", "G") and target is not None and (
+            ureg.Unit(_spec_unit(target)).dimensionality == ureg.Unit("m/s**2").dimensionality):
+        text = "standard_gravity"
+    try:
+        return ureg.Unit(text)
+    except (pint.errors.UndefinedUnitError, pint.errors.DefinitionSyntaxError, ValueError,
+            AttributeError, TypeError, SyntaxError, AssertionError) as exc:
+        raise ChannelMapError(
+            f"channel {column!r}: unknown unit {unit!r} ({exc}); write a pint unit such as "
+            "'km/h', 'deg', 'deg/s', 'rpm', 'm/s^2', 'g', 'N*m'"
+        ) from None
+
+
+def ambiguous_rate(unit: str, column: str) -> bool:
+    """True when ``unit`` is a bare rate (only time units: ``1/min``, ``1/s``, ``Hz``,
+    ``min^-1``) and ``column`` an angular speed (rad/s: omega_*, yaw/roll/pitch_rate).
+
+    Such a unit does not say per minute *of what*: a DBC's ``1/min`` wheel speed counts
+    revolutions (×2π to rad), pint would count radians. A unit naming the angle (``rpm``,
+    ``U/min``, ``rev/min``, ``rad/s``, ``deg/s``) or a ratio of other units (``km/h / m``,
+    a speed over a radius, which is rad/s) is not ambiguous.
+    """
+    if ch.unit_of(column) != "rad/s":
+        return False
+    ureg = _ureg()
+    parsed = _parse_unit(unit, column)
+    names = list(parsed._units)  # pint's UnitsContainer: unit name -> exponent
+    time_like = (ureg.get_dimensionality("s"), ureg.get_dimensionality("Hz"))
+    # pint's radian is dimensionless, so rpm has the dimension of Hz: look for the angle in
+    # each unit's base form.
+    return bool(names) and all(
+        ureg.get_dimensionality(n) in time_like
+        and "radian" not in ureg.Quantity(1.0, n).to_base_units().units._units for n in names)
+
+
 def unit_factor(unit: str, column: str) -> Callable[[np.ndarray], np.ndarray]:
     """The conversion of values in ``unit`` to the SI unit of spec column ``column``.
 
-    ``unit`` is any pint unit ("km/h", "deg", "deg/s", "rpm", "mm", "ms"…); ``"g"`` (or
+    ``unit`` is any pint unit ("km/h", "deg", "deg/s", "rpm", "mm", "ms"…) or a spelling of
+    :data:`UNIT_SPELLINGS` (``Nm``, ``U/min``, ``dps``, ``m/s2``, ``%``); ``"g"`` (or
     ``"G"``) means standard gravity for an acceleration, not gram. Offset units (degC) are
     converted with their offset.
 
     Raises:
-        ChannelMapError: unknown unit, or a dimension that cannot be converted (e.g. km/h for
-            a wheel angular speed), naming the channel.
+        ChannelMapError: unknown unit, a dimension that cannot be converted (e.g. km/h for
+            a wheel angular speed), or an ambiguous rate for an angular speed
+            (:func:`ambiguous_rate`), naming the channel.
     """
-    import pint
-
     target = ch.unit_of(column)
     if target is None:
         raise ChannelMapError(f"channel {column!r} is not a spec channel")
     ureg = _ureg()
     tgt = ureg.Unit(_spec_unit(target))
-    src_text = unit.strip()
-    if src_text in ("g", "G") and tgt.dimensionality == ureg.Unit("m/s**2").dimensionality:
-        src_text = "standard_gravity"
-    if src_text in ("-", ""):
-        src_text = "dimensionless"
-    try:
-        src = ureg.Unit(src_text)
-    except (pint.errors.UndefinedUnitError, pint.errors.DefinitionSyntaxError, ValueError,
-            AttributeError, TypeError, SyntaxError) as exc:
-        raise ChannelMapError(
-            f"channel {column!r}: unknown unit {unit!r} ({exc}); write a pint unit such as "
-            "'km/h', 'deg', 'deg/s', 'rpm', 'm/s^2', 'g'"
-        ) from None
+    src = _parse_unit(unit, column)
     if src.dimensionality != tgt.dimensionality:
         raise ChannelMapError(
             f"channel {column!r}: unit {unit!r} ({src.dimensionality}) cannot be converted to "
@@ -139,11 +185,68 @@ def unit_factor(unit: str, column: str) -> Callable[[np.ndarray], np.ndarray]:
             "expression that makes the quantity (e.g. wheel speed in m/s: expr = \"src / "
             "0.35\" with unit = \"rad/s\", the unit of the expression's result)"
         )
+    if ambiguous_rate(unit, column):
+        raise ChannelMapError(
+            f"channel {column!r}: unit {unit!r} is a bare rate: revolutions or radians per "
+            "unit of time? (a factor 2π apart); write the angle: unit = \"rpm\" (= \"U/min\", "
+            "revolutions per minute) or \"rad/s\""
+        )
 
     def convert(values: np.ndarray) -> np.ndarray:
         return np.asarray(ureg.Quantity(values, src).to(tgt).magnitude, dtype=np.float64)
 
     return convert
+
+
+def source_unit(spec: ChannelSpec, streams: Mapping[str, Stream]) -> str:
+    """The unit of ``spec``'s values: the map's ``unit``, or the source's where it gives none.
+
+    Without ``expr`` the map's unit must agree with the unit the source carries (a DBC
+    signal's or an MDF4 channel's): the same unit in another spelling (``Nm`` and ``N*m``)
+    agrees, and so does an angle-bearing unit for a source's bare rate (``rpm`` for
+    ``1/min``, which it makes explicit). With ``expr`` the unit is the expression's result's
+    and is not compared (the way to override a wrong source label).
+
+    Raises:
+        ChannelMapError: no unit in the map nor in the source, or a contradiction; the
+            message names the entry, both units and the fix.
+    """
+    where = f"[channels.{spec.name}]"
+    carried = streams["src"].unit if spec.expr is None and "src" in streams else None
+    address = spec.sources.get("src", "")
+    if spec.unit is None:
+        if not carried:
+            raise ChannelMapError(
+                f"{where}: unit is missing and source {address!r} carries none; give the "
+                f"unit of the source, e.g. unit = \"{ch.unit_of(spec.name)}\" if it is already SI"
+            )
+        if ambiguous_rate(carried, spec.name):
+            raise ChannelMapError(
+                f"{where}: source {address!r} carries the unit {carried!r}, a bare rate: "
+                "revolutions or radians per unit of time? (a factor 2π apart); say which in "
+                "the map: unit = \"rpm\" (revolutions per minute) or \"rad/min\""
+            )
+        return carried
+    if not carried:
+        return spec.unit
+    ureg = _ureg()
+    try:
+        mine, theirs = _parse_unit(spec.unit, spec.name), _parse_unit(carried, spec.name)
+    except ChannelMapError:
+        return spec.unit  # a source label pint cannot read: the map says what it means
+    ratio = ureg.Quantity(1.0, mine) / ureg.Quantity(1.0, theirs)
+    base = ratio.to_base_units()
+    agrees = base.dimensionless and abs(float(base.magnitude) - 1.0) < 1e-9
+    if not agrees and ambiguous_rate(carried, spec.name):
+        agrees = dict(base.units._units) == {"radian": 1}  # rev or rad: the map says which
+    if not agrees:
+        raise ChannelMapError(
+            f"{where}: unit = {spec.unit!r} contradicts the unit {carried!r} that source "
+            f"{address!r} carries; remove the map's unit to take the source's, or, if the "
+            f"source's label is wrong, write expr = \"src\" with unit = {spec.unit!r} (the "
+            "unit of an expression's result is taken as written)"
+        )
+    return spec.unit
 
 
 def _time_scale(unit: str, where: str) -> float:
@@ -276,11 +379,6 @@ def frame_matrix(frame: str) -> np.ndarray:
     return m
 
 
-def _rx(a: float) -> np.ndarray:
-    c, s = math.cos(a), math.sin(a)
-    return np.array([[1.0, 0.0, 0.0], [0.0, c, -s], [0.0, s, c]])
-
-
 def mounting_matrix(roll_deg: float, pitch_deg: float, yaw_deg: float) -> np.ndarray:
     """Rotation taking vectors in the sensor's axes (after the frame conversion) to the body's.
 
@@ -293,22 +391,17 @@ def mounting_matrix(roll_deg: float, pitch_deg: float, yaw_deg: float) -> np.nda
     and 0.8°). It is the rotation openpilot-style calibrations find from the direction of
     travel, which sees the sensor's x axis only.
     """
+    from scipy.spatial.transform import Rotation
+
     p, y = math.radians(pitch_deg), math.radians(yaw_deg)
-    s = np.array([math.cos(p) * math.cos(y), math.cos(p) * math.sin(y), -math.sin(p)])
-    return _min_rotation(np.array([1.0, 0.0, 0.0]), s) @ _rx(math.radians(roll_deg))
-
-
-def _min_rotation(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """The smallest rotation taking unit vector ``a`` to unit vector ``b`` (Rodrigues)."""
-    v = np.cross(a, b)
-    s = float(np.linalg.norm(v))
-    c = float(a @ b)
-    if s < 1e-15:
-        if c > 0:
-            return np.eye(3)
+    sx = np.array([math.cos(p) * math.cos(y), math.cos(p) * math.sin(y), -math.sin(p)])
+    if sx[0] <= -1.0 + 1e-15:
         raise ChannelMapError("mounting: the sensor's x axis points backwards; use frame")
-    k = np.array([[0.0, -v[2], v[1]], [v[2], 0.0, -v[0]], [-v[1], v[0], 0.0]])
-    return np.eye(3) + k + k @ k * ((1.0 - c) / s**2)
+    # The smallest rotation taking forward to sx is about forward × sx by the angle between them.
+    axis = np.cross([1.0, 0.0, 0.0], sx)
+    turn = Rotation.from_rotvec(axis / max(float(np.linalg.norm(axis)), 1e-300)
+                                * math.atan2(float(np.linalg.norm(axis)), float(sx[0])))
+    return np.asarray((turn * Rotation.from_euler("x", roll_deg, degrees=True)).as_matrix())
 
 
 def _angles_of_travel(d: np.ndarray) -> tuple[float, float]:
@@ -330,13 +423,14 @@ class ChannelSpec:
     """One spec channel of a map: where it comes from and how it is converted.
 
     ``sources`` maps expression names to source addresses (one source is named ``src``);
-    ``unit`` is the unit of the expression's result (the source's unit without one);
+    ``unit`` is the unit of the expression's result (the source's unit without one); None:
+    the unit the source carries (a DBC signal's, an MDF4 channel's), see :func:`source_unit`;
     ``offset`` (s) is added to the sources' sample times.
     """
 
     name: str
     sources: Mapping[str, str]
-    unit: str
+    unit: str | None
     expr: str | None = None
     resample: str = "linear"
     offset: float = 0.0
@@ -594,13 +688,15 @@ def _parse_channel(name: str, spec: Any) -> ChannelSpec:
         parse_expression(_string(expr, f"{where} expr"), set(sources))
     elif len(sources) > 1:
         raise ChannelMapError(f"{where}: several sources need an expr that combines them")
-    if "unit" not in t:
+    unit: str | None = None
+    if "unit" in t:
+        unit = _string(t["unit"], f"{where} unit") if t["unit"] != "-" else "-"
+        unit_factor(unit, name)
+    elif expr is not None:
         raise ChannelMapError(
-            f"{where}: unit is missing; give the unit of the source (or of the expression's "
-            f"result), e.g. unit = \"{ch.unit_of(name)}\" if it is already SI"
+            f"{where}: unit is missing; an expression's result has the unit you give it, e.g. "
+            f"unit = \"{ch.unit_of(name)}\" if it is already SI"
         )
-    unit = _string(t["unit"], f"{where} unit") if t["unit"] != "-" else "-"
-    unit_factor(unit, name)
     rule = t.get("resample", "sparse" if name in ch.SPARSE else "linear")
     if rule not in RESAMPLE_RULES:
         raise ChannelMapError(f"{where} resample = {rule!r}: use one of "
@@ -671,6 +767,9 @@ class ImportReport:
     """(start, end) s of the span kept by ``gaps = "trim"``; None when nothing was cut."""
     mounting: dict[str, Any] | None = None
     """roll/pitch/yaw in degrees and how each was found, when the IMU was rotated."""
+    units: dict[str, str] = field(default_factory=dict)
+    """channel → the unit its values were read in, with ``" (source)"`` where it was the
+    source's own (no ``unit`` in the map, :func:`source_unit`)."""
 
     def metadata(self) -> dict[str, str]:
         """The report as string metadata for :func:`vestim.io.log.write_log`."""
@@ -687,6 +786,8 @@ class ImportReport:
             meta["import.trimmed_s"] = json.dumps(list(self.trimmed))
         if self.mounting is not None:
             meta["import.mounting"] = json.dumps(self.mounting)
+        if self.units:
+            meta["import.units"] = json.dumps(self.units, ensure_ascii=False)
         return meta
 
 
@@ -732,7 +833,7 @@ def apply_channel_map(src: Path, cmap: ChannelMap) -> tuple[pd.DataFrame, Import
         s = raw[address]
         if len(s.t) == 0:
             raise ChannelMapError(f"source {address!r} has no samples")
-        return Stream(s.t + (cmap.offset + offset), s.value)
+        return Stream(s.t + (cmap.offset + offset), s.value, s.unit)
 
     per_channel = {name: {k: shifted(a, spec.offset) for k, a in spec.sources.items()}
                    for name, spec in cmap.channels.items()}
@@ -779,11 +880,15 @@ def apply_channel_map(src: Path, cmap: ChannelMap) -> tuple[pd.DataFrame, Import
         grid = grid[keep]
         trimmed = (float(grid[0] - t_start), float(grid[-1] - t_start))
     data: dict[str, np.ndarray] = {}
+    units: dict[str, str] = {}
     for name, spec in cmap.channels.items():
-        data[name] = _channel_values(spec, per_channel[name], grid, cmap.rate)
+        unit = source_unit(spec, per_channel[name])
+        units[name] = unit if spec.unit is not None else f"{unit} (source)"
+        data[name] = _channel_values(spec, unit, per_channel[name], grid, cmap.rate)
 
     report = ImportReport(source=str(src), map=str(cmap.path or "(in memory)"),
-                          rate=cmap.rate, t0_source=t_start, gaps=gaps, trimmed=trimmed)
+                          rate=cmap.rate, t0_source=t_start, gaps=gaps, trimmed=trimmed,
+                          units=units)
     _imu_to_body(cmap, data, grid, pose_streams, report)
     if cmap.pose is not None:
         data.update(_pose_reference(cmap, pose_streams, grid, report))
@@ -797,9 +902,10 @@ def apply_channel_map(src: Path, cmap: ChannelMap) -> tuple[pd.DataFrame, Import
     return df, report
 
 
-def _channel_values(spec: ChannelSpec, streams: Mapping[str, Stream], grid: np.ndarray,
-                    rate: float) -> np.ndarray:
-    convert = unit_factor(spec.unit, spec.name)
+def _channel_values(spec: ChannelSpec, unit: str, streams: Mapping[str, Stream],
+                    grid: np.ndarray, rate: float) -> np.ndarray:
+    """The channel's values on ``grid`` in SI, from ``streams`` in ``unit``."""
+    convert = unit_factor(unit, spec.name)
     if spec.resample == "sparse":
         ((key, s),) = streams.items()
         v = s.value if spec.expr is None else evaluate_expression(spec.expr, {key: s.value})
@@ -1029,15 +1135,30 @@ def _roll_from_gravity(m: np.ndarray, pitch_deg: float, yaw_deg: float) -> float
     return math.degrees(min(roots, key=abs))
 
 
-def _quat_matrix(q: np.ndarray) -> np.ndarray:
-    """(n, 3, 3) rotation matrices of unit quaternions (w, x, y, z) of shape (n, 4)."""
-    q = q / np.linalg.norm(q, axis=1, keepdims=True)
-    w, x, y, z = q.T
-    return np.stack([
-        np.stack([1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)], -1),
-        np.stack([2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)], -1),
-        np.stack([2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)], -1),
-    ], -2)
+def pose_orientation(t: np.ndarray, orientation: tuple[Stream, Stream, Stream, Stream]) -> Any:
+    """The pose's orientation at times ``t`` (s): a scipy ``Rotation`` of ``len(t)`` rotations.
+
+    ``orientation`` holds the quaternion's (w, x, y, z) components, sampled at the same times;
+    each sample is normalised, and between samples the rotation is interpolated along the
+    great circle (``scipy.spatial.transform.Slerp``, constant angular rate), never component
+    by component. Times outside the samples take the first or last orientation.
+
+    Raises:
+        ChannelMapError: components with different sample times, or a zero quaternion.
+    """
+    from scipy.spatial.transform import Rotation, Slerp
+
+    tq = orientation[0].t
+    if any(len(s.t) != len(tq) or not np.array_equal(s.t, tq) for s in orientation):
+        raise ChannelMapError("[pose] orientation: the four components need the same sample times")
+    q = np.column_stack([s.value for s in orientation])
+    if not np.all(np.linalg.norm(q, axis=1) > 0):
+        raise ChannelMapError("[pose] orientation holds a zero quaternion")
+    keep = np.concatenate([[True], np.diff(tq) > 0])  # Slerp needs increasing times
+    rot = Rotation.from_quat(q[keep], scalar_first=True)
+    if len(rot) == 1:
+        return Rotation.concatenate([rot] * len(t))
+    return Slerp(tq[keep], rot)(np.clip(t, tq[keep][0], tq[keep][-1]))
 
 
 def _pose_velocity(cmap: ChannelMap, pose_streams: Mapping[str, Stream]
@@ -1051,11 +1172,8 @@ def _pose_velocity(cmap: ChannelMap, pose_streams: Mapping[str, Stream]
         raise ChannelMapError("[pose] velocity: the three components need the same sample times")
     conv = unit_factor(pose.velocity_unit, "ref_vx")
     v_world = np.column_stack([conv(s.value) for s in vs])
-    q = np.column_stack([np.interp(t, s.t, s.value) for s in
-                         (pose_streams[a] for a in pose.orientation)])
-    if not np.all(np.linalg.norm(q, axis=1) > 0):
-        raise ChannelMapError("[pose] orientation holds a zero quaternion")
-    v_sensor = np.einsum("nji,nj->ni", _quat_matrix(q), v_world)  # R(q)^T v
+    w, x, y, z = (pose_streams[a] for a in pose.orientation)
+    v_sensor = pose_orientation(t, (w, x, y, z)).apply(v_world, inverse=True)  # R(q)^T v
     return t, v_sensor @ frame_matrix(pose.frame).T
 
 

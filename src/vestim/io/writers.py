@@ -15,7 +15,7 @@ front wheels) is sent as both road-wheel angles.
 They make test and example data for :mod:`vestim.io.readers` and the channel map, and let
 a spec log be replayed into tools that read those formats (CANape, asammdf GUI, Foxglove,
 ``ros2 bag play``). The CAN encoding quantises each value to its DBC factor (rounded to the
-nearest step, an error of at most factor/2; see :data:`CAN_SIGNALS`). The ROS 2 bag stores
+nearest step by cantools, an error of at most factor/2; see :data:`CAN_SIGNALS`). The ROS 2 bag stores
 float64 values exactly. Outputs are written atomically.
 
 Needs the ``logs`` extra (``pip install 'vestim[logs]'``).
@@ -37,11 +37,11 @@ import pandas as pd
 from vestim.errors import LogFormatError
 from vestim.io import channels as ch
 from vestim.io.files import atomic_path, write_text_atomic
-from vestim.io.readers.mdf import _bit_shifts, asammdf_module, cantools_module
+from vestim.io.readers.mdf import asammdf_module, cantools_module
 from vestim.io.readers.ros2 import rosbags_modules
 
-__all__ = ["CAN_SIGNALS", "ROS2_FIELDS", "VEHICLE_DBC", "can_database", "encode_signal", "write_dbc",
-           "write_mdf_can", "write_ros2_bag"]
+__all__ = ["CAN_SIGNALS", "ROS2_FIELDS", "VEHICLE_DBC", "can_database", "check_can_values", "encode_frames",
+           "write_dbc", "write_mdf_can", "write_ros2_bag"]
 
 VEHICLE_DBC = """\
 VERSION "vestim example vehicle bus 1"
@@ -139,13 +139,9 @@ def write_dbc(path: str | os.PathLike[str]) -> Path:
     return write_text_atomic(path, VEHICLE_DBC)
 
 
-def encode_signal(values: np.ndarray, signal: Any, *, column: str = "") -> np.ndarray:
-    """Frames' bytes (n, 8) uint8 holding ``values`` [DBC unit] in cantools ``signal``'s bits.
-
-    Raw = round((value − offset) / scale), to nearest with ties to even as cantools does.
-    A value outside the signal's raw range, or not finite, is a LogFormatError naming
-    ``column`` and the row. OR the arrays of a message's signals into one payload.
-    """
+def check_can_values(values: np.ndarray, signal: Any, *, column: str = "") -> None:
+    """Refuse values [DBC unit] that cantools ``signal`` cannot carry, naming ``column`` and
+    the row: not finite, or outside the raw range once rounded to the signal's step."""
     name = column or signal.name
     v = np.asarray(values, dtype=np.float64)
     if (bad := np.flatnonzero(~np.isfinite(v))).size:
@@ -159,15 +155,20 @@ def encode_signal(values: np.ndarray, signal: Any, *, column: str = "") -> np.nd
         raise LogFormatError(f"column {name!r} row {i}: {v[i]:g} {signal.unit or ''} is outside the range "
                              f"of CAN signal {signal.name!r} ({lo * signal.scale + signal.offset:g} to "
                              f"{hi * signal.scale + signal.offset:g}); check the column's unit")
-    bits = raw.astype(np.int64).astype(np.uint64) & np.uint64((1 << length) - 1)
-    mask = np.uint64((1 << length) - 1)
-    out = np.zeros((v.size, 8), dtype=np.uint8)
-    for j, shift in _bit_shifts(signal):
-        if shift >= 0:
-            part, keep = bits >> np.uint64(shift), int(mask) >> shift
-        else:
-            part, keep = bits << np.uint64(-shift), (int(mask) << -shift)
-        out[:, j] |= (part & np.uint64(keep & 0xFF)).astype(np.uint8)
+
+
+def encode_frames(message: Any, values: dict[str, np.ndarray]) -> np.ndarray:
+    """Payloads (n, 8) uint8 of cantools ``message`` carrying ``values`` (signal name →
+    (n,) values in the DBC's units), each frame encoded by cantools (``Message.encode``,
+    raw = round((value − offset) / scale), ties to even)."""
+    names = list(values)
+    columns = [np.asarray(values[k], dtype=np.float64).tolist() for k in names]
+    n = len(columns[0]) if columns else 0
+    out = np.zeros((n, 8), dtype=np.uint8)
+    for i in range(n):
+        data = message.encode({k: col[i] for k, col in zip(names, columns, strict=True)},
+                              scaling=True, strict=True)
+        out[i, : len(data)] = np.frombuffer(data, dtype=np.uint8)
     return out
 
 
@@ -223,10 +224,11 @@ def can_frames(log: pd.DataFrame, *, db: Any = None) -> tuple[np.ndarray, np.nda
         if any(c in ch.SPARSE for c, _ in signals):
             finite = np.all([np.isfinite(log[c].to_numpy(dtype=np.float64)) for c, _ in signals], axis=0)
             rows = np.flatnonzero(finite)
-        payload = np.zeros((rows.size, 8), dtype=np.uint8)
+        values: dict[str, np.ndarray] = {}
         for column, signal in signals:
-            values = log[column].to_numpy(dtype=np.float64)[rows] * CAN_SIGNALS[column].per_si
-            payload |= encode_signal(values, signal, column=column)
+            values[signal.name] = log[column].to_numpy(dtype=np.float64)[rows] * CAN_SIGNALS[column].per_si
+            check_can_values(values[signal.name], signal, column=column)
+        payload = encode_frames(message, values)
         key = message.frame_id | (1 << 31 if message.is_extended_frame else 0)
         ts.append(t[rows])
         ids.append(np.full(rows.size, key, dtype=np.uint32))

@@ -24,10 +24,16 @@ import numpy as np
 
 
 class Stream(NamedTuple):
-    """One source signal: sample times [s, the source's clock] and values [source units]."""
+    """One source signal: sample times [s, the source's clock] and values [source units].
+
+    ``unit`` is the unit the source itself gives (a DBC signal's, an MDF4 channel's, the
+    fixed SI unit of a standard ROS 2 message field), as written there; None where it
+    gives none (CSV, Parquet, numpy folders, other message fields).
+    """
 
     t: np.ndarray  # float64, shape (n,), non-decreasing
     value: np.ndarray  # float64, shape (n,)
+    unit: str | None = None
 
 
 SOURCE_KINDS: tuple[str, ...] = ("tabular", "numpy", "mdf", "ros2")

@@ -382,7 +382,7 @@ def _read_plain(mdf: Any, gi: int, ci: int, address: str, path: Path) -> Stream:
         valid = ~np.asarray(sig.invalidation_bits, dtype=bool)
         t, value = t[valid], value[valid]
     order = np.argsort(t, kind="stable")
-    return Stream(t[order], value[order])
+    return Stream(t[order], value[order], str(sig.unit).strip() or None)
 
 
 def _read_can(frames: _Frames, can: list[_CanAddress], path: Path) -> dict[str, Stream]:
@@ -431,15 +431,18 @@ def _read_can(frames: _Frames, can: list[_CanAddress], path: Path) -> dict[str, 
         for a in addresses:
             value = decode_signal(payload, a.signal)
             mask = _mux_mask(payload, message, a.signal)
-            out[a.address] = Stream(t, value) if mask is None else Stream(t[mask], value[mask])
+            unit = str(a.signal.unit or "").strip() or None
+            out[a.address] = (Stream(t, value, unit) if mask is None
+                              else Stream(t[mask], value[mask], unit))
     return out
 
 
 def read_streams(path: Path, addresses: Sequence[str], *, dbc: Sequence[Path] = ()) -> dict[str, Stream]:
     """Read ``addresses`` from the MDF file at ``path`` (see the module docstring).
 
-    Returns ``{address: Stream(t [s, the file's master time], value [source unit])}``, each
-    sorted by time. A name that is both a channel of the file and a DBC ``Message.Signal``
+    Returns ``{address: Stream(t [s, the file's master time], value [source unit], unit)}``,
+    each sorted by time; ``unit`` is the channel's MDF unit or the DBC signal's unit (None
+    where empty). A name that is both a channel of the file and a DBC ``Message.Signal``
     is read as the channel.
     """
     path = Path(path)

@@ -40,7 +40,7 @@ import numpy as np
 from vestim.errors import LogFormatError
 from vestim.io.readers import Stream
 
-__all__ = ["TIME_MODES", "parse_address", "read_streams"]
+__all__ = ["FIELD_UNITS", "TIME_MODES", "field_unit", "parse_address", "read_streams"]
 
 TimeMode = Literal["header", "receive"]
 TIME_MODES: tuple[str, ...] = ("header", "receive")
@@ -48,6 +48,19 @@ TIME_MODES: tuple[str, ...] = ("header", "receive")
 _ADDRESS = re.compile(r"^(/[^:\s]*):(.+)$")
 _PART = re.compile(r"([A-Za-z_][A-Za-z0-9_]*)((?:\[\d+\])*)$")
 _TIME_TYPES = ("builtin_interfaces/msg/Time", "builtin_interfaces/msg/Duration")
+
+FIELD_UNITS: dict[str, dict[str, str]] = {
+    "sensor_msgs/msg/Imu": {"linear_acceleration": "m/s^2", "angular_velocity": "rad/s"},
+    "geometry_msgs/msg/Twist": {"linear": "m/s", "angular": "rad/s"},
+    "geometry_msgs/msg/TwistStamped": {"twist.linear": "m/s", "twist.angular": "rad/s"},
+    "geometry_msgs/msg/Accel": {"linear": "m/s^2", "angular": "rad/s^2"},
+    "geometry_msgs/msg/AccelStamped": {"accel.linear": "m/s^2", "accel.angular": "rad/s^2"},
+    "nav_msgs/msg/Odometry": {"twist.twist.linear": "m/s", "twist.twist.angular": "rad/s",
+                              "pose.pose.position": "m"},
+    "sensor_msgs/msg/NavSatFix": {"latitude": "deg", "longitude": "deg", "altitude": "m"},
+}
+"""The units standard ROS 2 message fields are defined in (REP-103: SI units), by message
+type and field path prefix; a stream of one of these fields carries its unit."""
 
 
 def rosbags_modules() -> SimpleNamespace:
@@ -80,6 +93,15 @@ def parse_address(address: str) -> tuple[str, list[str | int]]:
         parts.append(pm.group(1))
         parts.extend(int(i) for i in re.findall(r"\[(\d+)\]", pm.group(2)))
     return topic, parts
+
+
+def field_unit(msgtype: str, parts: Sequence[str | int]) -> str | None:
+    """The unit of field ``parts`` of a ``msgtype`` message from :data:`FIELD_UNITS`, or None."""
+    path = ".".join(p for p in parts if isinstance(p, str))
+    for prefix, unit in FIELD_UNITS.get(msgtype, {}).items():
+        if path == prefix or path.startswith(prefix + "."):
+            return unit
+    return None
 
 
 def _msgtype(obj: Any) -> str | None:
@@ -174,8 +196,9 @@ def _stamp(msg: Any) -> int | None:
 def read_streams(path: Path, addresses: Sequence[str], *, time: TimeMode = "header") -> dict[str, Stream]:
     """Read ``addresses`` (``/topic:field.path``) from the ROS 2 bag at ``path``.
 
-    Returns ``{address: Stream(t [s, bag clock], value [the field's unit])}``, each sorted
-    by time; ``time`` chooses header stamps or receive times (module docstring).
+    Returns ``{address: Stream(t [s, bag clock], value [the field's unit], unit)}``, each
+    sorted by time (``unit`` from :data:`FIELD_UNITS`, else None); ``time`` chooses header
+    stamps or receive times (module docstring).
     """
     path = Path(path)
     if time not in TIME_MODES:
@@ -242,11 +265,12 @@ def read_streams(path: Path, addresses: Sequence[str], *, time: TimeMode = "head
     finally:
         reader.close()
     out: dict[str, Stream] = {}
-    for fields_ in by_topic.values():
+    for topic, fields_ in by_topic.items():
+        msgtype = next((c.msgtype for c in connections if c.topic == topic), "")
         for f in fields_:
             ns = np.asarray(f.t_ns, dtype=np.int64)
             t = (ns // 10**9).astype(np.float64) + (ns % 10**9) * 1e-9  # one rounding, ≤ 1.2e-7 s
             v = np.asarray(f.value, dtype=np.float64)
             order = np.argsort(t, kind="stable")
-            out[f.address] = Stream(t[order], v[order])
+            out[f.address] = Stream(t[order], v[order], field_unit(msgtype, f.parts))
     return {a: out[a] for a in addresses}
