@@ -191,14 +191,16 @@ def test_online_step_is_compiled_and_exact(velocity):
     np.testing.assert_array_equal(pd.DataFrame(rows)[batch.columns].to_numpy(), batch.to_numpy())
 
 
-@pytest.mark.parametrize("missing", [(), ("ax",), ("az",), ("roll_rate", "pitch_rate")])
+@pytest.mark.parametrize("missing", [(), ("ax",), ("az",), ("roll_rate", "pitch_rate"),
+                                     ("torque_fl", "torque_fr", "torque_rl", "torque_rr")])
 @pytest.mark.parametrize("velocity", ["fused", "reference"])
 def test_compiled_composition_equals_the_stage_by_stage_path(velocity, missing, monkeypatch):
     """pipeline.rows composes the stages in one compiled call over blocks; the stage-by-stage
     path (Pipeline._advance) it replaces where it covers a log must give the same numbers bit
     for bit: an AWD ice launch (the fused filter switches to the corner measurement) with a
     10 Hz gnss_speed (the radius scale and latency), less the channels in ``missing`` (a_x
-    from the wheel speeds, the level-road a_z, the quasi-static attitude). And step() through
+    from the wheel speeds, the level-road a_z, the quasi-static attitude, the chassis
+    torques). And step() through
     the same call gives the same rows."""
     run = strip(simulate(get_maneuver("launch_ice", tire="magic"), SUV, seed=1)).iloc[:1600]
     run = run.drop(columns=list(missing))

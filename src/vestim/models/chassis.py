@@ -2,7 +2,7 @@
 
 For logs without wheel torques (most conventional cars' CAN logs; the gap named
 in 001 Sec. VI) the net wheel torques are reconstructed from the chassis
-equation and a torque distribution. Pure NumPy, vectorised over samples; arrays
+equation and a torque distribution, one compiled pass over the samples; arrays
 with a corner axis have shape (n, 4) in the order fl, fr, rl, rr. Units SI.
 
 **Chassis equation.** The body's longitudinal balance on a road of grade γ
@@ -55,6 +55,8 @@ the brake balance. The axle totals stay right in all these cases.
 
 from __future__ import annotations
 
+from typing import NamedTuple
+
 import numpy as np
 from numba import njit
 
@@ -71,16 +73,12 @@ def drive_front_share(drivetrain: str, front_drive_share: float) -> float:
     return {"awd": front_drive_share, "fwd": 1.0, "rwd": 0.0}[drivetrain]
 
 
-def rolling_sign(omega: np.ndarray) -> np.ndarray:
-    """s(ω) = clip(ω/ω_0, −1, 1): direction of the rolling-resistance moment, faded near standstill."""
-    return np.clip(omega / RR_OMEGA0, -1.0, 1.0)
-
-
 @njit(cache=True, error_model="numpy")
 def torque_less_rolling_resistance(torque: np.ndarray, omega: np.ndarray, fz: np.ndarray,
                                    f_radius: float) -> np.ndarray:
     """T_i − f R F_z,i s(ω_i) (n, 4), N m: the net wheel torque less the rolling-resistance
-    moment of 000 eq. (1)'s wheel (``f_radius`` = f·R, m; s as :func:`rolling_sign`)."""
+    moment of 000 eq. (1)'s wheel (``f_radius`` = f·R, m; s(ω) = clip(ω/ω_0, −1, 1) as in
+    the module docstring)."""
     out = np.empty(torque.shape)
     for k in range(torque.shape[0]):
         for i in range(torque.shape[1]):
@@ -89,35 +87,34 @@ def torque_less_rolling_resistance(torque: np.ndarray, omega: np.ndarray, fz: np
     return out
 
 
-def steered_drag(f_y: np.ndarray, delta_front: np.ndarray, mass: float, lf: float,
-                 lr: float) -> np.ndarray:
-    """C of eq. (1): Σ_front F_y,i tan δ_i ≈ (m l_r/L) f_y tan δ̄_f, N, shape (n,).
+class ChassisKernelParams(NamedTuple):
+    """:func:`chassis_torque_kernel`'s parameters (SI), from :func:`chassis_params`."""
 
-    Args:
-        f_y: road-plane lateral specific force at the CG (n,), m/s².
-        delta_front: mean front road-wheel angle (n,), rad.
-        mass: kg; lf, lr: CG to front and rear axle, m.
-    """
-    return mass * lr / (lf + lr) * f_y * np.tan(delta_front)
-
-
-def total_wheel_torque(force_total: np.ndarray, fz: np.ndarray, omega: np.ndarray,
-                       omega_dot: np.ndarray, wheel_inertia: float, radius: float,
-                       rolling_resistance: float) -> np.ndarray:
-    """Net torque of all four wheels together, eq. (2) of the module docstring, N m, shape (n,).
-
-    Args:
-        force_total: Σ F_x,i of eq. (1) (n,), N.
-        fz: normal load per corner (n, 4), N.
-        omega: wheel speed per corner (n, 4), rad/s (for the rolling-resistance sign).
-        omega_dot: wheel acceleration per corner (n, 4), rad/s².
-        wheel_inertia: one wheel, kg m²; radius: effective rolling radius, m.
-        rolling_resistance: coefficient f (moment f R F_z).
-    """
-    rr = rolling_resistance * np.sum(fz * rolling_sign(omega), axis=1)
-    return radius * (force_total + rr) + wheel_inertia * np.sum(omega_dot, axis=1)
+    mass: float  # kg
+    steer_share: float  # m l_r/L, kg: the front axle's share of m f_y (C of eq. (1))
+    drag_coef: float  # ½ ρ C_dA, kg/m
+    wheel_inertia: float  # one wheel, kg m²
+    radius: float  # m
+    rolling_resistance: float  # f (moment f R F_z)
+    drive_front: float  # front share of drive torque (see drive_front_share)
+    brake_front: float  # front share of brake torque
 
 
+def chassis_params(vehicle: Vehicle) -> ChassisKernelParams:
+    """The chassis equation's parameters: [vehicle] mass, lf, lr, wheel_inertia, wheel_radius
+    and drivetrain, [aerodynamics] (drag and rolling resistance) and [powertrain]
+    front_drive_share and brake_front_share (their defaults when the file has no such
+    tables)."""
+    b, a, pt = vehicle.body, vehicle.stated_aerodynamics, vehicle.powertrain
+    return ChassisKernelParams(
+        float(b.mass), float(b.mass * b.lr / (b.lf + b.lr)),
+        float(0.5 * a.air_density * a.drag_area), float(b.wheel_inertia),
+        float(b.wheel_radius), float(a.rolling_resistance),
+        float(drive_front_share(b.drivetrain, pt.front_drive_share)),
+        float(pt.brake_front_share))
+
+
+@njit(cache=True, error_model="numpy")
 def distribute_torque(total: np.ndarray, drive_front: float, brake_front: float) -> np.ndarray:
     """Corner torques (n, 4) from the total (n,): drive split while Σ T > 0, brake balance otherwise.
 
@@ -126,23 +123,44 @@ def distribute_torque(total: np.ndarray, drive_front: float, brake_front: float)
         drive_front: front-axle share of drive torque (see :func:`drive_front_share`).
         brake_front: front-axle share of brake torque (``[powertrain] brake_front_share``).
     """
-    front = np.where(total > 0.0, drive_front, brake_front)
-    half_front = 0.5 * front * total
-    half_rear = 0.5 * (1.0 - front) * total
-    return np.column_stack((half_front, half_front, half_rear, half_rear))
+    out = np.empty((total.shape[0], 4))
+    for k in range(total.shape[0]):
+        front = drive_front if total[k] > 0.0 else brake_front
+        out[k, 0] = out[k, 1] = 0.5 * front * total[k]
+        out[k, 2] = out[k, 3] = 0.5 * (1.0 - front) * total[k]
+    return out
 
 
-def drag_speed(f_x: np.ndarray, omega: np.ndarray, radius: float) -> np.ndarray:
-    """Speed (n,) in m/s for the drag term: the slowest wheel periphery R ω while f_x ≥ 0, the
-    fastest while f_x < 0.
+@njit(cache=True, error_model="numpy")
+def chassis_torque_kernel(f_x: np.ndarray, f_y: np.ndarray, delta_front: np.ndarray,
+                          fz: np.ndarray, omega: np.ndarray, omega_dot: np.ndarray,
+                          p: ChassisKernelParams) -> np.ndarray:
+    """Equivalent net wheel torques (n, 4), N m, by eq. (1), (2) and the distribution of the
+    module docstring: f_x, f_y road-plane specific force (n,), m/s²; delta_front the mean
+    front road-wheel angle (n,), rad; fz (n, 4) N; omega (n, 4) rad/s; omega_dot (n, 4)
+    rad/s².
 
-    A driven wheel that spins reads fast and a braked one that locks reads slow, so
-    the wheel least likely to slip is the slowest under drive and the fastest under
-    braking; the mean would put a spinning wheel's speed, squared, into the drag
-    (at 145 rad/s of RWD wheel spin on μ = 0.3 it read 28 m/s for a true 9 m/s).
-    """
-    v = radius * omega
-    return np.where(f_x >= 0.0, v.min(axis=1), v.max(axis=1))
+    The drag's speed is the slowest wheel periphery R ω while f_x ≥ 0, the fastest while
+    f_x < 0: a driven wheel that spins reads fast and a braked one that locks reads slow, so
+    the wheel least likely to slip is the slowest under drive and the fastest under braking
+    (the mean put a spinning wheel's speed, squared, into the drag: at 145 rad/s of RWD wheel
+    spin on μ = 0.3 it read 28 m/s for a true 9 m/s). C of eq. (1) is (m l_r/L) f_y tan δ̄_f."""
+    n = f_x.shape[0]
+    total = np.empty(n)
+    for k in range(n):
+        lo = hi = p.radius * omega[k, 0]
+        rr = 0.0
+        spin = 0.0
+        for i in range(4):
+            v = p.radius * omega[k, i]
+            lo, hi = min(lo, v), max(hi, v)
+            rr += fz[k, i] * min(max(omega[k, i] / RR_OMEGA0, -1.0), 1.0)
+            spin += omega_dot[k, i]
+        speed = lo if f_x[k] >= 0.0 else hi
+        force = (p.mass * f_x[k] + p.drag_coef * speed * abs(speed)
+                 + p.steer_share * f_y[k] * np.tan(delta_front[k]))
+        total[k] = p.radius * (force + p.rolling_resistance * rr) + p.wheel_inertia * spin
+    return distribute_torque(total, p.drive_front, p.brake_front)
 
 
 def chassis_wheel_torques(f_x: np.ndarray, f_y: np.ndarray, delta_front: np.ndarray,
@@ -155,20 +173,16 @@ def chassis_wheel_torques(f_x: np.ndarray, f_y: np.ndarray, delta_front: np.ndar
         delta_front: mean front road-wheel angle (n,), rad.
         fz: normal load per corner (n, 4), N.
         omega: wheel speed per corner (n, 4), rad/s.
-        vehicle: uses [vehicle] mass, lf, lr, wheel_inertia, wheel_radius and
-            drivetrain, [aerodynamics] (drag and rolling resistance) and [powertrain]
-            front_drive_share and brake_front_share (their defaults when the file
-            has no such tables).
+        vehicle: see :func:`chassis_params`.
         omega_dot: wheel acceleration per corner (n, 4), rad/s², or None for the
             rolling-without-slip approximation ω̇_i = f_x/R.
     """
-    b, a, pt = vehicle.body, vehicle.stated_aerodynamics, vehicle.powertrain
-    speed = drag_speed(f_x, omega, b.wheel_radius)
-    drag = 0.5 * a.air_density * a.drag_area * speed * np.abs(speed)
-    force = b.mass * f_x + drag + steered_drag(f_y, delta_front, b.mass, b.lf, b.lr)
+    p = chassis_params(vehicle)
+    f_x = np.ascontiguousarray(f_x, dtype=float)
     if omega_dot is None:
-        omega_dot = np.repeat((f_x / b.wheel_radius)[:, None], 4, axis=1)
-    total = total_wheel_torque(force, fz, omega, omega_dot, b.wheel_inertia, b.wheel_radius,
-                               a.rolling_resistance)
-    return distribute_torque(total, drive_front_share(b.drivetrain, pt.front_drive_share),
-                             pt.brake_front_share)
+        omega_dot = np.repeat((f_x / p.radius)[:, None], 4, axis=1)
+    return chassis_torque_kernel(f_x, np.ascontiguousarray(f_y, dtype=float),
+                                 np.ascontiguousarray(delta_front, dtype=float),
+                                 np.ascontiguousarray(fz, dtype=float),
+                                 np.ascontiguousarray(omega, dtype=float),
+                                 np.ascontiguousarray(omega_dot, dtype=float), p)

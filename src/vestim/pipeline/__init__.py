@@ -473,8 +473,8 @@ class Pipeline:
 
     def _compiled_rows(self, u: Inputs) -> bool:
         """Whether :func:`~vestim.pipeline.rows.pipeline_rows` covers this configuration and
-        these inputs (wheel speeds and torques measured)."""
-        return rows_kernel.covers(self) and u.omega_measured and u.torque_measured
+        these inputs (wheel speeds measured)."""
+        return rows_kernel.covers(self) and u.omega_measured
 
     def _run_rows(self, u: Inputs, faulty: np.ndarray, health: np.ndarray,
                   imu_health: np.ndarray, spans: list[tuple[int, int]], restarts: list[int],
@@ -490,7 +490,8 @@ class Pipeline:
         X = np.empty((max(b - a for a, b in spans), rows_kernel.N_X))
         inputs = (u.t, u.omega, u.torque, u.ax, u.ay, u.az, u.yaw_rate, u.roll_rate,
                   u.pitch_rate, u.delta[:, :2], faulty, health, imu_health, u.gnss_speed)
-        sensors = rows_kernel.Sensors(ax=u.ax_measured, az=u.az_measured)
+        sensors = rows_kernel.Sensors(ax=u.ax_measured, az=u.az_measured,
+                                      torque=u.torque_measured)
         for a, stop in spans:
             if a in restarts:  # the first sample after a gap: start again
                 self.reset()
@@ -842,14 +843,17 @@ class Pipeline:
             return None
         x = self._x1[0]
         get = sample.get
+        nan = math.nan
         try:
             for j, key in enumerate(_ROW_REQUIRED):
                 x[j] = float(sample[key])
             x[rows_kernel.X_DELTA] = float(sample["delta_fl"])
             x[rows_kernel.X_DELTA + 1] = float(sample["delta_fr"])
-        except KeyError:
+            torques = "torque_fl" in sample
+            for j, key in enumerate(_TORQUES, rows_kernel.X_TORQUE):
+                x[j] = float(sample[key]) if torques else nan
+        except KeyError:  # no wheel speeds or per-wheel steering, or some torques only
             return None
-        nan = math.nan
         x[rows_kernel.X_AX] = float(get("ax", nan))
         x[rows_kernel.X_AY] = float(get("ay", 0.0))
         x[rows_kernel.X_AZ] = float(get("az", nan))
@@ -862,26 +866,29 @@ class Pipeline:
             _ONES if self._chunk_health is None else self._health_buf[2][0])
         x[rows_kernel.X_HEALTH_IMU:rows_kernel.X_GNSS] = (
             _ONES[:3] if self._chunk_imu is None else self._imu_buf[3][0])
-        present = ("ax" in sample, "az" in sample, "roll_rate" in sample,
+        present = ("ax" in sample, "az" in sample, torques, "roll_rate" in sample,
                    "pitch_rate" in sample)
-        self._trees(rows_kernel.OUTPUT_COLUMNS, _SENSORS[present[:2]])
+        self._trees(rows_kernel.OUTPUT_COLUMNS, _SENSORS[present[:3]])
         self._call_rows(self._x1, self._y1, 0, 1)
         if present != self._step_rates:
             self._step_rates = present
             self.force.note_sources({
-                "torque_source": "measured", "az_source": "measured" if present[1] else "level_road",
-                "roll_source": "rate" if present[2] else "quasi_static",
-                "pitch_source": "rate" if present[3] else "quasi_static",
+                "torque_source": "measured" if present[2] else "chassis",
+                "az_source": "measured" if present[1] else "level_road",
+                "roll_source": "rate" if present[3] else "quasi_static",
+                "pitch_source": "rate" if present[4] else "quasi_static",
                 "ax_source": "measured" if present[0] else "wheel_speeds",
                 "speed_source": "wheel_speeds", "outputs_unavailable": "none"})
         return dict(zip(rows_kernel.OUTPUT_COLUMNS, self._y1[:, 0].tolist(), strict=True))
 
 
-_ROW_REQUIRED = ("t", *(f"omega_{c}" for c in CORNERS), *(f"torque_{c}" for c in CORNERS))
+_ROW_REQUIRED = ("t", *(f"omega_{c}" for c in CORNERS))
 """The channels a sample needs for :meth:`Pipeline._row_step` (and per-wheel steering)."""
 
-_SENSORS = {(ax, az): rows_kernel.Sensors(ax=ax, az=az) for ax in (False, True)
-            for az in (False, True)}
+_TORQUES = tuple(f"torque_{c}" for c in CORNERS)
+
+_SENSORS = {(ax, az, tq): rows_kernel.Sensors(ax=ax, az=az, torque=tq) for ax in (False, True)
+            for az in (False, True) for tq in (False, True)}
 """The :class:`~vestim.pipeline.rows.Sensors` of a sample, made once."""
 
 _HELD = {False: np.array([False]), True: np.array([True])}

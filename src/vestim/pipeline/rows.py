@@ -12,11 +12,11 @@ over the rows of a chunk and :meth:`Pipeline.step` over one row, so the two give
 numbers by construction.
 
 It covers force ``ukf`` with normal loads ``dynamic`` or ``static``, velocity ``fused`` or
-``reference``, fusion ``axle`` or ``adaptive`` (:func:`covers`), and logs with wheel speeds
-and wheel torques, with or without ``ax`` (then from the wheel speeds), ``az`` (then the
-level-road value) and ``gnss_speed``; the other configurations still go through the
-stage-by-stage path of :meth:`Pipeline._advance`. The per-sample equations are
-those cited in :mod:`vestim.estimators.force.estimator`, :mod:`vestim.estimators.force.normal`
+``reference``, fusion ``axle`` or ``adaptive`` (:func:`covers`), and logs with wheel speeds,
+with or without wheel torques (then from the chassis equation), ``ax`` (then from the wheel
+speeds), ``az`` (then the level-road value) and ``gnss_speed``; the other configurations
+still go through the stage-by-stage path of :meth:`Pipeline._advance`. The per-sample
+equations are those cited in :mod:`vestim.estimators.force.estimator`, :mod:`vestim.estimators.force.normal`
 and :mod:`vestim.pipeline`.
 """
 
@@ -61,7 +61,12 @@ from vestim.estimators.velocity.reference import (
     copy_reference_state,
     gnss_calibration,
 )
-from vestim.models.chassis import torque_less_rolling_resistance
+from vestim.models.chassis import (
+    ChassisKernelParams,
+    chassis_params,
+    chassis_torque_kernel,
+    torque_less_rolling_resistance,
+)
 from vestim.models.kinematics import (
     corner_acc_kernel,
     level_road_az,
@@ -131,10 +136,11 @@ N_ROW = _R_SIGMA + N_SIGMA
 
 class Sensors(NamedTuple):
     """Which of the optional channels the log measures (the others are derived: ``ax`` from
-    the wheel speeds, ``az`` for a level road)."""
+    the wheel speeds, ``az`` for a level road, the wheel torques from the chassis equation)."""
 
     ax: bool
     az: bool
+    torque: bool
 
 
 class ForceParams(NamedTuple):
@@ -162,6 +168,7 @@ class ForceParams(NamedTuple):
     lat_wm: np.ndarray
     lat_wc: np.ndarray
     lat_tau: float
+    chassis: ChassisKernelParams  # the wheel torques of a log without them
 
 
 class ForceState(NamedTuple):
@@ -176,6 +183,10 @@ class ForceState(NamedTuple):
     lat_cov: np.ndarray
     lat_state: np.ndarray
     ax_state: np.ndarray  # the wheel-speed a_x's filter (logs without ax)
+    inertia_x: np.ndarray  # the ω̇ filter of the chassis torques (logs without torques):
+    inertia_cov: np.ndarray  # the longitudinal UKF's state on zero torque
+    inertia_hist_t: np.ndarray
+    inertia_hist_w: np.ndarray
 
 
 class CornerParams(NamedTuple):
@@ -370,6 +381,8 @@ def _block(P: Params, S: State, x: np.ndarray, Y: np.ndarray, k0: int) -> None:
         fxa = ax.copy()
     fz = normal_loads_kernel(fxa, fya, fza, roll, pitch, p_rate, q_rate, roll_acc, pitch_acc,
                              fp.normal, fp.dynamic)
+    if not P.sensors.torque:
+        torque = _chassis_torques(fp, fs, t, omega, fxa, fya, delta, fz)
     teff = torque_less_rolling_resistance(torque, omega, fz, fp.rolling_moment)
     fx = np.empty((m, 4))
     sig_fx = np.full((m, 4), np.nan)
@@ -464,6 +477,32 @@ def _block(P: Params, S: State, x: np.ndarray, Y: np.ndarray, k0: int) -> None:
     _put(Y, col, j + 5, latency, k0)
     _post(P.post, S.post, x, t, ax, v, sig, c_y, bias[:, 3].copy(), fx, fy, fz, sig_fx, sig_fy,
           sr, sa, vxt, vyt, delta, omega_v, Y, col, k0)
+
+
+@njit(**_JIT)
+def _chassis_torques(fp: ForceParams, fs: ForceState, t: np.ndarray, omega: np.ndarray,
+                     fxa: np.ndarray, fya: np.ndarray, delta: np.ndarray,
+                     fz: np.ndarray) -> np.ndarray:
+    """Net wheel torques (m, 4), N m, for a log without them (ForceEstimator.advance): the
+    chassis equation with ω̇ from the longitudinal UKF run on zero torque (its output is
+    −I_w ω̇̂/R, so the main run subtracts the same ω̇̂ and a wheel spinning up keeps only its
+    share of the tire force)."""
+    m = t.shape[0]
+    f_inertia = np.empty((m, 4))
+    sigma = np.full((m, 4), np.nan)
+    high = np.empty((m, 4), dtype=np.bool_)
+    ukf_kernel(t, omega, np.zeros((m, 4)), fp.lon, fp.lon_wm, fp.lon_wc, fp.lon_tau,
+               fs.inertia_x, fs.inertia_cov, fs.inertia_hist_t, fs.inertia_hist_w, f_inertia,
+               sigma, high)
+    ch = fp.chassis
+    gain = -ch.radius / ch.wheel_inertia
+    omega_dot = np.empty((m, 4))
+    delta_front = np.empty(m)
+    for i in range(m):
+        delta_front[i] = (delta[i, 0] + delta[i, 1]) / 2.0
+        for c in range(4):
+            omega_dot[i, c] = gain * f_inertia[i, c]
+    return chassis_torque_kernel(fxa, fya, delta_front, fz, omega, omega_dot, ch)
 
 
 @njit(**_JIT)
@@ -644,9 +683,11 @@ def build(pipe: Pipeline, names: tuple[str, ...], sensors: Sensors) -> tuple[Par
         float(fe._drag_coef), float(b.yaw_inertia), float(lp.load_exponent),
         float(lp.slip_scale), normal_load_params(veh), fe.config.normal == "dynamic",
         fe._att_prm, lon.kernel_params, lon._wm, lon._wc, float(lon._tau), fe._xw, fe._yw,
-        fe._q_lat, fe._r_lat, fe._w4, fe._c4, float(fe._tau4))
+        fe._q_lat, fe._r_lat, fe._w4, fe._c4, float(fe._tau4), chassis_params(veh))
+    inertia = fe._lon_inertia  # the same method and parameters as lon, its own state
     force_s = ForceState(fe._att, lon._x, lon._P, lon._hist_t, lon._hist_w, fe._lat_x,
-                         fe._lat_P, fe._lat_state, fe._ax_state)
+                         fe._lat_P, fe._lat_state, fe._ax_state, inertia._x, inertia._P,
+                         inertia._hist_t, inertia._hist_w)
     fused = cfg.velocity == "fused"
     corner = pipe.corner
     if fused:
