@@ -191,8 +191,12 @@ def test_online_step_is_compiled_and_exact(velocity):
     np.testing.assert_array_equal(pd.DataFrame(rows)[batch.columns].to_numpy(), batch.to_numpy())
 
 
-@pytest.mark.parametrize("missing", [(), ("ax",), ("az",), ("roll_rate", "pitch_rate"),
-                                     ("torque_fl", "torque_fr", "torque_rl", "torque_rr")])
+_WHEELS = ("omega_fl", "omega_fr", "omega_rl", "omega_rr")
+_TORQUES = ("torque_fl", "torque_fr", "torque_rl", "torque_rr")
+
+
+@pytest.mark.parametrize("missing", [(), ("ax",), ("az",), ("roll_rate", "pitch_rate"), _TORQUES,
+                                     _WHEELS + _TORQUES, (*_WHEELS, *_TORQUES, "ax")])
 @pytest.mark.parametrize("velocity", ["fused", "reference"])
 def test_compiled_composition_equals_the_stage_by_stage_path(velocity, missing, monkeypatch):
     """pipeline.rows composes the stages in one compiled call over blocks; the stage-by-stage
@@ -200,7 +204,7 @@ def test_compiled_composition_equals_the_stage_by_stage_path(velocity, missing, 
     for bit: an AWD ice launch (the fused filter switches to the corner measurement) with a
     10 Hz gnss_speed (the radius scale and latency), less the channels in ``missing`` (a_x
     from the wheel speeds, the level-road a_z, the quasi-static attitude, the chassis
-    torques). And step() through
+    torques, no wheel speeds: the GNSS speed alone). And step() through
     the same call gives the same rows."""
     run = strip(simulate(get_maneuver("launch_ice", tire="magic"), SUV, seed=1)).iloc[:1600]
     run = run.drop(columns=list(missing))

@@ -473,8 +473,8 @@ class Pipeline:
 
     def _compiled_rows(self, u: Inputs) -> bool:
         """Whether :func:`~vestim.pipeline.rows.pipeline_rows` covers this configuration and
-        these inputs (wheel speeds measured)."""
-        return rows_kernel.covers(self) and u.omega_measured
+        these inputs (any sensor set it takes)."""
+        return rows_kernel.covers(self)
 
     def _run_rows(self, u: Inputs, faulty: np.ndarray, health: np.ndarray,
                   imu_health: np.ndarray, spans: list[tuple[int, int]], restarts: list[int],
@@ -488,10 +488,12 @@ class Pipeline:
         written = rows_kernel.columns(names)
         block[np.setdiff1d(np.arange(len(names)), written[written >= 0])] = np.nan
         X = np.empty((max(b - a for a, b in spans), rows_kernel.N_X))
+        speed = u.vehicle_speed if u.vehicle_speed is not None else np.full(n, np.nan)
         inputs = (u.t, u.omega, u.torque, u.ax, u.ay, u.az, u.yaw_rate, u.roll_rate,
-                  u.pitch_rate, u.delta[:, :2], faulty, health, imu_health, u.gnss_speed)
+                  u.pitch_rate, u.delta[:, :2], faulty, health, imu_health, u.gnss_speed, speed)
         sensors = rows_kernel.Sensors(ax=u.ax_measured, az=u.az_measured,
-                                      torque=u.torque_measured)
+                                      torque=u.torque_measured, omega=u.omega_measured,
+                                      vehicle_speed=u.vehicle_speed is not None)
         for a, stop in spans:
             if a in restarts:  # the first sample after a gap: start again
                 self.reset()
@@ -762,8 +764,9 @@ class Pipeline:
                         if progress is not None and total:
                             progress(min((done + stop) / total, 1.0))
 
+                    columns = rows_kernel.OUTPUT_COLUMNS if u.omega_measured else _NO_WHEELS
                     frame = self._run_rows(u, faulty, health, imu_health, spans, restarts,
-                                           tuple(names) or rows_kernel.OUTPUT_COLUMNS, on_span)
+                                           tuple(names) or columns, on_span)
                 else:
                     frame = frame_from_chunks((advance(a, e) for a, e in spans), n, names)
                 names = list(frame.columns)
@@ -845,15 +848,19 @@ class Pipeline:
         get = sample.get
         nan = math.nan
         try:
-            for j, key in enumerate(_ROW_REQUIRED):
-                x[j] = float(sample[key])
+            x[rows_kernel.X_T] = float(sample["t"])
             x[rows_kernel.X_DELTA] = float(sample["delta_fl"])
             x[rows_kernel.X_DELTA + 1] = float(sample["delta_fr"])
+            wheels = "omega_fl" in sample
+            for j, key in enumerate(_OMEGA_KEYS, rows_kernel.X_OMEGA):
+                x[j] = float(sample[key]) if wheels else nan
             torques = "torque_fl" in sample
             for j, key in enumerate(_TORQUES, rows_kernel.X_TORQUE):
                 x[j] = float(sample[key]) if torques else nan
-        except KeyError:  # no wheel speeds or per-wheel steering, or some torques only
+        except KeyError:  # no per-wheel steering, or some wheel speeds or torques only
             return None
+        if not wheels and "gnss_speed" not in sample and "vehicle_speed" not in sample:
+            return None  # the general path names what is missing
         x[rows_kernel.X_AX] = float(get("ax", nan))
         x[rows_kernel.X_AY] = float(get("ay", 0.0))
         x[rows_kernel.X_AZ] = float(get("az", nan))
@@ -861,34 +868,41 @@ class Pipeline:
         x[rows_kernel.X_P] = float(get("roll_rate", nan))
         x[rows_kernel.X_Q] = float(get("pitch_rate", nan))
         x[rows_kernel.X_GNSS] = float(get("gnss_speed", nan))
+        x[rows_kernel.X_VSPEED] = float(get("vehicle_speed", nan))
         x[rows_kernel.X_HELD] = 1.0 if self._held_now else 0.0
         x[rows_kernel.X_HEALTH_OMEGA:rows_kernel.X_HEALTH_IMU] = (
             _ONES if self._chunk_health is None else self._health_buf[2][0])
         x[rows_kernel.X_HEALTH_IMU:rows_kernel.X_GNSS] = (
             _ONES[:3] if self._chunk_imu is None else self._imu_buf[3][0])
-        present = ("ax" in sample, "az" in sample, torques, "roll_rate" in sample,
-                   "pitch_rate" in sample)
-        self._trees(rows_kernel.OUTPUT_COLUMNS, _SENSORS[present[:3]])
+        present = ("ax" in sample, "az" in sample, torques, wheels, "vehicle_speed" in sample,
+                   "roll_rate" in sample, "pitch_rate" in sample)
+        columns = rows_kernel.OUTPUT_COLUMNS if wheels else _NO_WHEELS
+        self._trees(columns, _SENSORS[present[:5]])
         self._call_rows(self._x1, self._y1, 0, 1)
         if present != self._step_rates:
             self._step_rates = present
+            speed = ("wheel_speeds" if wheels else
+                     "vehicle_speed" if present[4] else "gnss_speed")
             self.force.note_sources({
                 "torque_source": "measured" if present[2] else "chassis",
                 "az_source": "measured" if present[1] else "level_road",
-                "roll_source": "rate" if present[3] else "quasi_static",
-                "pitch_source": "rate" if present[4] else "quasi_static",
-                "ax_source": "measured" if present[0] else "wheel_speeds",
-                "speed_source": "wheel_speeds", "outputs_unavailable": "none"})
-        return dict(zip(rows_kernel.OUTPUT_COLUMNS, self._y1[:, 0].tolist(), strict=True))
+                "roll_source": "rate" if present[5] else "quasi_static",
+                "pitch_source": "rate" if present[6] else "quasi_static",
+                "ax_source": "measured" if present[0] else speed, "speed_source": speed,
+                "outputs_unavailable": "none" if wheels else ",".join(WHEEL_ONLY_OUTPUTS)})
+        return dict(zip(columns, self._y1[:len(columns), 0].tolist(), strict=True))
 
-
-_ROW_REQUIRED = ("t", *(f"omega_{c}" for c in CORNERS))
-"""The channels a sample needs for :meth:`Pipeline._row_step` (and per-wheel steering)."""
 
 _TORQUES = tuple(f"torque_{c}" for c in CORNERS)
 
-_SENSORS = {(ax, az, tq): rows_kernel.Sensors(ax=ax, az=az, torque=tq) for ax in (False, True)
-            for az in (False, True) for tq in (False, True)}
+_SENSORS = {key: rows_kernel.Sensors(*key) for key in itertools.product((False, True), repeat=5)}
+"""The :class:`~vestim.pipeline.rows.Sensors` of a sample, made once."""
+
+_NO_WHEELS: tuple[str, ...] = tuple(
+    c for c in rows_kernel.OUTPUT_COLUMNS if c not in WHEEL_ONLY_OUTPUTS
+    and not c.startswith(("sigma_slip_ratio_", "health_omega_")))
+"""The output columns of a log without wheel speeds (no per-wheel F_x, slip ratio, radius
+scale, GNSS latency nor wheel health)."""
 """The :class:`~vestim.pipeline.rows.Sensors` of a sample, made once."""
 
 _HELD = {False: np.array([False]), True: np.array([True])}

@@ -27,7 +27,14 @@ from typing import TYPE_CHECKING, Any, NamedTuple
 import numpy as np
 from numba import njit
 
-from vestim.estimators.force.estimator import AX_TAU, normalised, wheel_reference_speed
+from vestim.estimators.force.estimator import (
+    AX_TAU,
+    AX_TAU_SPARSE,
+    normalised,
+    speed_derivative,
+    speed_hold,
+    wheel_reference_speed,
+)
 from vestim.estimators.force.lateral import lateral_kernel, split_weights
 from vestim.estimators.force.longitudinal import UKFKernelParams, ukf_kernel
 from vestim.estimators.force.normal import (
@@ -87,14 +94,15 @@ CORNER_KEYS = ("fl", "fr", "rl", "rr")
 
 # --- the input row X[k] -------------------------------------------------------------------
 X_T, X_OMEGA, X_TORQUE, X_AX, X_AY, X_AZ, X_R, X_P, X_Q, X_DELTA = 0, 1, 5, 9, 10, 11, 12, 13, 14, 15
-X_HELD, X_HEALTH_OMEGA, X_HEALTH_IMU, X_GNSS = 17, 18, 22, 25
-N_X = 26
+X_HELD, X_HEALTH_OMEGA, X_HEALTH_IMU, X_GNSS, X_VSPEED = 17, 18, 22, 25, 26
+N_X = 27
 X_CHANNELS: tuple[str, ...] = (
     "t", *(f"omega_{c}" for c in CORNER_KEYS), *(f"torque_{c}" for c in CORNER_KEYS), "ax",
     "ay", "az", "yaw_rate", "roll_rate", "pitch_rate", "delta_fl", "delta_fr")
 """The log channels of X's first columns, in order (then: an input was held (1/0), the
-wheel-speed health (4) and the IMU health (3), 1.0 healthy, and ``gnss_speed``, NaN between
-fixes). A channel the :class:`Sensors` say is not measured is not read."""
+wheel-speed health (4) and the IMU health (3), 1.0 healthy, ``gnss_speed``, NaN between
+fixes, and ``vehicle_speed``). A channel the :class:`Sensors` say is not measured is not
+read."""
 
 # --- the output row, in the kernel's order (Params.col places each in Y) -------------------
 _PER_CORNER = ("vx", "vy", "vxt", "vyt", "slip_ratio", "slip_angle", "fx", "fy", "fz", "mu_x",
@@ -136,11 +144,14 @@ N_ROW = _R_SIGMA + N_SIGMA
 
 class Sensors(NamedTuple):
     """Which of the optional channels the log measures (the others are derived: ``ax`` from
-    the wheel speeds, ``az`` for a level road, the wheel torques from the chassis equation)."""
+    the wheel speeds or the speed, ``az`` for a level road, the wheel torques from the
+    chassis equation, the wheel speeds from ``vehicle_speed`` or the ``gnss_speed`` fixes)."""
 
     ax: bool
     az: bool
     torque: bool
+    omega: bool
+    vehicle_speed: bool
 
 
 class ForceParams(NamedTuple):
@@ -187,6 +198,7 @@ class ForceState(NamedTuple):
     inertia_cov: np.ndarray  # the longitudinal UKF's state on zero torque
     inertia_hist_t: np.ndarray
     inertia_hist_w: np.ndarray
+    hold_state: np.ndarray  # the speed between gnss_speed fixes (logs without wheel speeds)
 
 
 class CornerParams(NamedTuple):
@@ -239,6 +251,7 @@ class VelocityParams(NamedTuple):
     radius: RadiusKernelParams
     reference: ReferenceKernelParams
     sigma_gnss: float  # a fix's σ, m/s
+    sigma_vehicle_speed: float  # vehicle_speed's σ (logs without wheel speeds), m/s
     tau_wheel: float  # the filter's inflation time of an extra speed measurement, s
     fused: bool
     corner: CornerParams
@@ -359,13 +372,31 @@ def _block(P: Params, S: State, x: np.ndarray, Y: np.ndarray, k0: int) -> None:
     radius = fp.radius
     xw, yw = fp.xw, fp.yw
     att = fp.attitude
+    sensors = P.sensors
     # --- force stage (ForceEstimator.advance) ---
-    if P.sensors.ax:
+    if sensors.ax:
         ax = x[:, X_AX].copy()
-    else:  # from the wheel speeds (ForceEstimator._speed_inputs)
+    elif sensors.omega:  # from the wheel speeds (ForceEstimator._speed_inputs)
         ax = np.empty(m)
         wheel_reference_speed(t, omega, r, yw, radius, att.undriven_axle, AX_TAU[0], AX_TAU[1],
                               fs.ax_state, ax)
+    else:  # from the speed
+        ax = np.empty(m)
+        if sensors.vehicle_speed:
+            speed_derivative(t, x[:, X_VSPEED].copy(), AX_TAU[0], AX_TAU[1], fs.ax_state, ax)
+        else:
+            speed_derivative(t, x[:, X_GNSS].copy(), AX_TAU_SPARSE[0], AX_TAU_SPARSE[1],
+                             fs.ax_state, ax)
+    if not sensors.omega:  # the wheels roll at the speed
+        v_w = np.empty(m)
+        if sensors.vehicle_speed:
+            v_w[:] = x[:, X_VSPEED]
+        else:
+            speed_hold(t, x[:, X_GNSS].copy(), ax, fs.hold_state, v_w)
+        for i in range(m):
+            w = v_w[i] / radius
+            for c in range(4):
+                omega[i, c] = w
     roll = np.empty(m)
     pitch = np.empty(m)
     roll_acc = np.empty(m)
@@ -375,13 +406,13 @@ def _block(P: Params, S: State, x: np.ndarray, Y: np.ndarray, k0: int) -> None:
                     roll_acc, pitch_acc, fy_sd)
     # the attitude's gravity as the accelerometers read it (none in an INS's output)
     g_roll, g_pitch = att.gravity * roll, att.gravity * pitch
-    az = x[:, X_AZ].copy() if P.sensors.az else level_road_az(ax, ay, g_roll, g_pitch)
+    az = x[:, X_AZ].copy() if sensors.az else level_road_az(ax, ay, g_roll, g_pitch)
     fxa, fya, fza = road_specific_force(ax, ay, az, g_roll, g_pitch)
-    if not P.sensors.ax:  # a speed's derivative is already the road-plane acceleration
+    if not sensors.ax:  # a speed's derivative is already the road-plane acceleration
         fxa = ax.copy()
     fz = normal_loads_kernel(fxa, fya, fza, roll, pitch, p_rate, q_rate, roll_acc, pitch_acc,
                              fp.normal, fp.dynamic)
-    if not P.sensors.torque:
+    if not sensors.torque:
         torque = _chassis_torques(fp, fs, t, omega, fxa, fya, delta, fz)
     teff = torque_less_rolling_resistance(torque, omega, fz, fp.rolling_moment)
     fx = np.empty((m, 4))
@@ -401,6 +432,9 @@ def _block(P: Params, S: State, x: np.ndarray, Y: np.ndarray, k0: int) -> None:
     lateral_kernel(t, fx, delta, weights, fxa, fya, r, drag, fz, speed, fp.normal.mass,
                    fp.yaw_inertia, xw, yw, fp.lat_q, fp.lat_r, fp.lat_wm, fp.lat_wc,
                    fp.lat_tau, fs.lat_x, fs.lat_cov, fs.lat_state, fy, sig_fy)
+    if not sensors.omega:  # per-corner F_x needs the wheels' own speeds
+        fx[:] = np.nan
+        sig_fx[:] = np.nan
     # --- velocity stage (Pipeline._advance) ---
     mu_x = normalised(fx, fz)
     mu_y = normalised(fy, fz)
@@ -414,12 +448,19 @@ def _block(P: Params, S: State, x: np.ndarray, Y: np.ndarray, k0: int) -> None:
     gnss = np.empty(m)
     extra = np.empty((m, 2))
     extra_var = np.empty((m, 2))
-    gnss_calibration(vp.radius, vs.radius, t, omega, x[:, X_GNSS].copy(), scale, latency, gnss)
     omega_v = omega
-    for i in range(m):
-        if scale[i] != 1.0:
-            omega_v = omega * scale.reshape(m, 1)
-            break
+    if sensors.omega:
+        gnss_calibration(vp.radius, vs.radius, t, omega, x[:, X_GNSS].copy(), scale, latency,
+                         gnss)
+        for i in range(m):
+            if scale[i] != 1.0:
+                omega_v = omega * scale.reshape(m, 1)
+                break
+    else:  # no wheel speeds to scale nor to find the latency against; ω unknown to the filter
+        scale[:] = np.nan
+        latency[:] = np.nan
+        gnss[:] = x[:, X_GNSS]
+        omega_v = np.full((m, 4), np.nan)
     # A fix's error is white at the receiver's rate: undo the τ_wheel/T_s inflation the
     # filter gives every extra CG-speed measurement, so its weight does not depend on the
     # log's sample rate.
@@ -431,6 +472,11 @@ def _block(P: Params, S: State, x: np.ndarray, Y: np.ndarray, k0: int) -> None:
         inflate = max(vp.tau_wheel / (dt if dt > 0 else np.inf), 1.0)
         extra[i, 0] = gnss[i]
         extra_var[i, 0] = var_gnss / inflate if np.isfinite(gnss[i]) else np.nan
+        if sensors.vehicle_speed and not sensors.omega:  # a dense speed enters like a wheel
+            extra[i, 1] = x[i, X_VSPEED]
+            extra_var[i, 1] = vp.sigma_vehicle_speed ** 2
+        else:
+            extra[i, 1] = extra_var[i, 1] = np.nan
     vs.t_gnss[0] = t_prev
     v_ref = np.empty((m, 2))
     sig_ref = np.empty((m, 2))
@@ -442,13 +488,14 @@ def _block(P: Params, S: State, x: np.ndarray, Y: np.ndarray, k0: int) -> None:
         # While it is the plain filter the fused filter's state is not used: it holds the
         # plain filter's state before this block, the start of its first own step.
         copy_reference_state(vs.fused, vs.reference)
+    n_extra = 1 if sensors.omega else 2
     _reference_rows(vp.reference, vs.reference, 0, m, t, omega_v, torque, mu_x, axle, fxa,
-                    fya, fy_sd, r, delta, extra[:, :1], extra_var[:, :1], v_ref, sig_ref,
-                    bias_ref, trust)
+                    fya, fy_sd, r, delta, extra[:, :n_extra], extra_var[:, :n_extra], v_ref,
+                    sig_ref, bias_ref, trust)
     v = v_ref
     sig = sig_ref
     bias = bias_ref
-    if vp.fused:
+    if vp.fused and sensors.omega:  # without wheel speeds "fused" is the reference filter
         v, sig, bias = _fused(P, S, t, omega_v, torque, delta, r, fxa, fya, fy_sd, mu_x, axle,
                               extra, extra_var, v_ref, sig_ref, bias_ref, same)
     # --- the corners' kinematics ---
@@ -459,6 +506,9 @@ def _block(P: Params, S: State, x: np.ndarray, Y: np.ndarray, k0: int) -> None:
                   vyt.reshape(-1))
     sr = np.empty((m, 4))
     slip_ratio_kernel(omega_v.reshape(-1), vxt.reshape(-1), radius, 0.1, sr.reshape(-1))
+    if not sensors.omega:
+        sr[:] = np.nan
+        omega_v = omega  # the speed's, as the uncertainty stage reads them
     sa = np.empty((m, 4))
     slip_angle_kernel(vxt.reshape(-1), vyt.reshape(-1), 0.5, sa.reshape(-1))
     col = P.col
@@ -687,7 +737,7 @@ def build(pipe: Pipeline, names: tuple[str, ...], sensors: Sensors) -> tuple[Par
     inertia = fe._lon_inertia  # the same method and parameters as lon, its own state
     force_s = ForceState(fe._att, lon._x, lon._P, lon._hist_t, lon._hist_w, fe._lat_x,
                          fe._lat_P, fe._lat_state, fe._ax_state, inertia._x, inertia._P,
-                         inertia._hist_t, inertia._hist_w)
+                         inertia._hist_t, inertia._hist_w, fe._hold_state)
     fused = cfg.velocity == "fused"
     corner = pipe.corner
     if fused:
@@ -716,7 +766,8 @@ def build(pipe: Pipeline, names: tuple[str, ...], sensors: Sensors) -> tuple[Par
     velocity_p = VelocityParams(
         pipe._stiff_prm, pipe._radius_prm,
         ref.kernel_params if sensors.ax else ref.kernel_params_speed,
-        float(p_ref.sigma_gnss), float(p_ref.tau_wheel), fused, corner_p,
+        float(p_ref.sigma_gnss), float(p_ref.sigma_vehicle_speed), float(p_ref.tau_wheel), fused,
+        corner_p,
         cfg.fusion == "adaptive", float(fp.eta_front), float(ap.w_s), float(ap.w_range),
         float(ap.rho), float(ap.threshold))
     prev = np.array([pipe._prev[0], pipe._prev[1], 1.0 if pipe._fused_is_reference else 0.0])
