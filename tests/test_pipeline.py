@@ -197,8 +197,10 @@ _TORQUES = ("torque_fl", "torque_fr", "torque_rl", "torque_rr")
 
 @pytest.mark.parametrize("missing", [(), ("ax",), ("az",), ("roll_rate", "pitch_rate"), _TORQUES,
                                      _WHEELS + _TORQUES, (*_WHEELS, *_TORQUES, "ax")])
-@pytest.mark.parametrize("velocity", ["fused", "reference"])
-def test_compiled_composition_equals_the_stage_by_stage_path(velocity, missing, monkeypatch):
+@pytest.mark.parametrize(("velocity", "force"), [("fused", "ukf"), ("reference", "ukf"),
+                                               ("fused", "pid"), ("reference", "naive")])
+def test_compiled_composition_equals_the_stage_by_stage_path(velocity, force, missing,
+                                                             monkeypatch):
     """pipeline.rows composes the stages in one compiled call over blocks; the stage-by-stage
     path (Pipeline._advance) it replaces where it covers a log must give the same numbers bit
     for bit: an AWD ice launch (the fused filter switches to the corner measurement) with a
@@ -211,7 +213,7 @@ def test_compiled_composition_equals_the_stage_by_stage_path(velocity, missing, 
     fix = np.arange(len(run)) % 20 == 0
     raw = simulate(get_maneuver("launch_ice", tire="magic"), SUV, seed=1)["ref_vx"]
     run["gnss_speed"] = np.where(fix, 1.01 * raw.to_numpy()[:1600], np.nan)
-    cfg = PipelineConfig(velocity=velocity)
+    cfg = PipelineConfig(velocity=velocity, force=force)
     compiled = Pipeline(SUV, cfg)
     batch = compiled.run(run)
     assert compiled._rows is not None  # the compiled composition ran

@@ -471,6 +471,11 @@ class Pipeline:
             "outputs_unavailable": ("none" if u.omega_measured
                                     else ",".join(WHEEL_ONLY_OUTPUTS))})
 
+    @property
+    def _force_sigma(self) -> bool:
+        """Whether the longitudinal force method gives a σ (the UKFs)."""
+        return self.config.force in ("ukf", "ukf_rw")
+
     def _compiled_rows(self, u: Inputs) -> bool:
         """Whether :func:`~vestim.pipeline.rows.pipeline_rows` covers this configuration and
         these inputs (any sensor set it takes)."""
@@ -764,7 +769,7 @@ class Pipeline:
                         if progress is not None and total:
                             progress(min((done + stop) / total, 1.0))
 
-                    columns = rows_kernel.OUTPUT_COLUMNS if u.omega_measured else _NO_WHEELS
+                    columns = rows_kernel.output_columns(u.omega_measured, self._force_sigma)
                     frame = self._run_rows(u, faulty, health, imu_health, spans, restarts,
                                            tuple(names) or columns, on_span)
                 else:
@@ -876,7 +881,7 @@ class Pipeline:
             _ONES[:3] if self._chunk_imu is None else self._imu_buf[3][0])
         present = ("ax" in sample, "az" in sample, torques, wheels, "vehicle_speed" in sample,
                    "roll_rate" in sample, "pitch_rate" in sample)
-        columns = rows_kernel.OUTPUT_COLUMNS if wheels else _NO_WHEELS
+        columns = rows_kernel.output_columns(wheels, self._force_sigma)
         self._trees(columns, _SENSORS[present[:5]])
         self._call_rows(self._x1, self._y1, 0, 1)
         if present != self._step_rates:
@@ -898,11 +903,6 @@ _TORQUES = tuple(f"torque_{c}" for c in CORNERS)
 _SENSORS = {key: rows_kernel.Sensors(*key) for key in itertools.product((False, True), repeat=5)}
 """The :class:`~vestim.pipeline.rows.Sensors` of a sample, made once."""
 
-_NO_WHEELS: tuple[str, ...] = tuple(
-    c for c in rows_kernel.OUTPUT_COLUMNS if c not in WHEEL_ONLY_OUTPUTS
-    and not c.startswith(("sigma_slip_ratio_", "health_omega_")))
-"""The output columns of a log without wheel speeds (no per-wheel F_x, slip ratio, radius
-scale, GNSS latency nor wheel health)."""
 """The :class:`~vestim.pipeline.rows.Sensors` of a sample, made once."""
 
 _HELD = {False: np.array([False]), True: np.array([True])}

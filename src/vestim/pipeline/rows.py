@@ -11,7 +11,7 @@ a float block that way, so the frame is made without a copy. :meth:`Pipeline.run
 over the rows of a chunk and :meth:`Pipeline.step` over one row, so the two give the same
 numbers by construction.
 
-It covers force ``ukf`` with normal loads ``dynamic`` or ``static``, velocity ``fused`` or
+It covers every force method with normal loads ``dynamic`` or ``static``, velocity ``fused`` or
 ``reference``, fusion ``axle`` or ``adaptive`` (:func:`covers`), and logs with wheel speeds,
 with or without wheel torques (then from the chassis equation), ``ax`` (then from the wheel
 speeds), ``az`` (then the level-road value) and ``gnss_speed``; the other configurations
@@ -22,6 +22,7 @@ and :mod:`vestim.pipeline`.
 
 from __future__ import annotations
 
+import functools
 from typing import TYPE_CHECKING, Any, NamedTuple
 
 import numpy as np
@@ -36,7 +37,11 @@ from vestim.estimators.force.estimator import (
     wheel_reference_speed,
 )
 from vestim.estimators.force.lateral import lateral_kernel, split_weights
-from vestim.estimators.force.longitudinal import UKFKernelParams, ukf_kernel
+from vestim.estimators.force.longitudinal import (
+    LongitudinalParams,
+    LongitudinalState,
+    longitudinal_rows,
+)
 from vestim.estimators.force.normal import (
     AttitudeKernelParams,
     NormalLoadKernelParams,
@@ -135,6 +140,21 @@ OUTPUT_COLUMNS: tuple[str, ...] = (
 """The output columns, in the order of the estimate's frame (the order every configuration's
 output follows: :meth:`Pipeline._groups`); the same names as :data:`ROW_NAMES`."""
 assert sorted(OUTPUT_COLUMNS) == sorted(ROW_NAMES)
+
+_WHEEL_ONLY = ("slip_ratio_", "fx_", "mu_x_", "sigma_fx_", "sigma_slip_ratio_", "health_omega_",
+               "radius_scale", "gnss_latency")
+_VELOCITY_SIGMA = ("sigma_vx", "sigma_vy", "sigma_vxt_", "sigma_vyt_", "sigma_slip_angle_",
+                   "sigma_slip_ratio_")
+
+
+@functools.cache
+def output_columns(wheels: bool, force_sigma: bool) -> tuple[str, ...]:
+    """The output columns of a log with or without wheel speeds (no per-wheel F_x, slip ratio,
+    radius scale, GNSS latency nor wheel health without them), for a longitudinal force
+    method with or without a σ (made once: the same tuple for the same arguments)."""
+    return tuple(c for c in OUTPUT_COLUMNS
+                 if (wheels or not c.startswith(_WHEEL_ONLY))
+                 and (force_sigma or not c.startswith("sigma_fx_")))
 _R_MU = 3 + 4 * len(_PER_CORNER) + 6
 _N_GROUPS = len(VALIDITY_GROUPS)
 _R_HEALTH = _R_MU + 12 + 2 * _N_GROUPS
@@ -168,10 +188,7 @@ class ForceParams(NamedTuple):
     normal: NormalLoadKernelParams
     dynamic: bool  # normal loads "dynamic" (else "static")
     attitude: AttitudeKernelParams
-    lon: UKFKernelParams
-    lon_wm: np.ndarray
-    lon_wc: np.ndarray
-    lon_tau: float
+    lon: LongitudinalParams  # the longitudinal method (and the chassis torques' ω̇ filter)
     xw: np.ndarray  # corner positions ahead of the CG, m
     yw: np.ndarray  # corner positions left of the CG, m
     lat_q: np.ndarray
@@ -186,18 +203,13 @@ class ForceState(NamedTuple):
     """The force stage's states (shared with :class:`~vestim.estimators.force.ForceEstimator`)."""
 
     attitude: np.ndarray
-    lon_x: np.ndarray
-    lon_cov: np.ndarray
-    lon_hist_t: np.ndarray
-    lon_hist_w: np.ndarray
+    lon: LongitudinalState
     lat_x: np.ndarray
     lat_cov: np.ndarray
     lat_state: np.ndarray
     ax_state: np.ndarray  # the wheel-speed a_x's filter (logs without ax)
-    inertia_x: np.ndarray  # the ω̇ filter of the chassis torques (logs without torques):
-    inertia_cov: np.ndarray  # the longitudinal UKF's state on zero torque
-    inertia_hist_t: np.ndarray
-    inertia_hist_w: np.ndarray
+    inertia: LongitudinalState  # the longitudinal method on zero torque: the chassis
+    # torques' ω̇ (logs without torques)
     hold_state: np.ndarray  # the speed between gnss_speed fixes (logs without wheel speeds)
 
 
@@ -417,9 +429,7 @@ def _block(P: Params, S: State, x: np.ndarray, Y: np.ndarray, k0: int) -> None:
     teff = torque_less_rolling_resistance(torque, omega, fz, fp.rolling_moment)
     fx = np.empty((m, 4))
     sig_fx = np.full((m, 4), np.nan)
-    high = np.empty((m, 4), dtype=np.bool_)
-    ukf_kernel(t, omega, teff, fp.lon, fp.lon_wm, fp.lon_wc, fp.lon_tau, fs.lon_x, fs.lon_cov,
-               fs.lon_hist_t, fs.lon_hist_w, fx, sig_fx, high)
+    longitudinal_rows(fp.lon, fs.lon, t, omega, teff, fx, sig_fx)
     drag = np.empty(m)
     speed = np.empty(m)
     for i in range(m):
@@ -534,16 +544,13 @@ def _chassis_torques(fp: ForceParams, fs: ForceState, t: np.ndarray, omega: np.n
                      fxa: np.ndarray, fya: np.ndarray, delta: np.ndarray,
                      fz: np.ndarray) -> np.ndarray:
     """Net wheel torques (m, 4), N m, for a log without them (ForceEstimator.advance): the
-    chassis equation with ω̇ from the longitudinal UKF run on zero torque (its output is
+    chassis equation with ω̇ from the longitudinal method run on zero torque (its output is
     −I_w ω̇̂/R, so the main run subtracts the same ω̇̂ and a wheel spinning up keeps only its
     share of the tire force)."""
     m = t.shape[0]
     f_inertia = np.empty((m, 4))
-    sigma = np.full((m, 4), np.nan)
-    high = np.empty((m, 4), dtype=np.bool_)
-    ukf_kernel(t, omega, np.zeros((m, 4)), fp.lon, fp.lon_wm, fp.lon_wc, fp.lon_tau,
-               fs.inertia_x, fs.inertia_cov, fs.inertia_hist_t, fs.inertia_hist_w, f_inertia,
-               sigma, high)
+    longitudinal_rows(fp.lon, fs.inertia, t, omega, np.zeros((m, 4)), f_inertia,
+                      np.full((m, 4), np.nan))
     ch = fp.chassis
     gain = -ch.radius / ch.wheel_inertia
     omega_dot = np.empty((m, 4))
@@ -705,7 +712,7 @@ def _post(p: PostParams, st: PostState, x: np.ndarray, t: np.ndarray, ax: np.nda
 def covers(pipe: Pipeline) -> bool:
     """Whether :func:`pipeline_rows` composes ``pipe``'s configuration (see the module)."""
     cfg = pipe.config
-    return (cfg.force == "ukf" and cfg.velocity in ("fused", "reference")
+    return (cfg.velocity in ("fused", "reference")
             and cfg.fusion in ("axle", "adaptive")
             and (cfg.velocity != "fused" or isinstance(getattr(pipe.corner, "params", None),
                                                        KFParams)))
@@ -732,12 +739,11 @@ def build(pipe: Pipeline, names: tuple[str, ...], sensors: Sensors) -> tuple[Par
         float(b.wheel_radius), float(fe.rolling_resistance * b.wheel_radius),
         float(fe._drag_coef), float(b.yaw_inertia), float(lp.load_exponent),
         float(lp.slip_scale), normal_load_params(veh), fe.config.normal == "dynamic",
-        fe._att_prm, lon.kernel_params, lon._wm, lon._wc, float(lon._tau), fe._xw, fe._yw,
+        fe._att_prm, lon.params, fe._xw, fe._yw,
         fe._q_lat, fe._r_lat, fe._w4, fe._c4, float(fe._tau4), chassis_params(veh))
     inertia = fe._lon_inertia  # the same method and parameters as lon, its own state
-    force_s = ForceState(fe._att, lon._x, lon._P, lon._hist_t, lon._hist_w, fe._lat_x,
-                         fe._lat_P, fe._lat_state, fe._ax_state, inertia._x, inertia._P,
-                         inertia._hist_t, inertia._hist_w, fe._hold_state)
+    force_s = ForceState(fe._att, lon.state, fe._lat_x, fe._lat_P, fe._lat_state,
+                         fe._ax_state, inertia.state, fe._hold_state)
     fused = cfg.velocity == "fused"
     corner = pipe.corner
     if fused:

@@ -38,6 +38,8 @@ from vestim.params import check_ranges, pack
 _JIT: dict[str, Any] = {"cache": True, "error_model": "numpy"}
 
 METHODS: tuple[str, ...] = ("ukf", "ukf_rw", "pid", "uio", "naive")
+UKF, UKF_RW, PID, UIO, NAIVE = range(len(METHODS))
+"""The methods' codes (their index in :data:`METHODS`, the order the registry lists them)."""
 
 
 # ----------------------------------------------------------------------------- UKF
@@ -650,6 +652,68 @@ def naive_kernel(t: np.ndarray, omega: np.ndarray, torque: np.ndarray, iw: float
             prev[1, c] = torque[k, c]
             prev[2, c] = omega[k, c]
 
+class LongitudinalParams(NamedTuple):
+    """Every longitudinal method's parameters, whole (SI), and which one runs: ``method`` its
+    index in :data:`METHODS` (the code :func:`longitudinal_rows` dispatches on)."""
+
+    method: int
+    iw: float  # wheel inertia, kg m²
+    radius: float  # effective radius, m
+    ukf: UKFKernelParams
+    r_omega: float  # ukf_rw's noise and random-walk parameters (UKFParams)
+    r_torque: float
+    q_force: float
+    q_force_high: float
+    omega_dot_high: float
+    p0_force: float
+    eta1: float  # pid's gains (PIDParams)
+    eta2: float
+    eta3: float
+    kp: float  # uio's gain and nominal force (UIOParams)
+    f0: float
+    wm: np.ndarray  # the UKFs' sigma-point weights
+    wc: np.ndarray
+    tau: float
+
+
+class LongitudinalState(NamedTuple):
+    """The longitudinal methods' states: the UKFs' ``x``, ``P`` and ω̇ window (``hist_t``,
+    ``hist_w``), ukf_rw's previous torque, the observers' ``state`` (3, 4) and the previous
+    sample ``prev`` (3, 4: t, T, ω; t NaN before the first)."""
+
+    x: np.ndarray
+    P: np.ndarray
+    hist_t: np.ndarray
+    hist_w: np.ndarray
+    prev_torque: np.ndarray
+    state: np.ndarray
+    prev: np.ndarray
+
+
+@njit(**_JIT)
+def longitudinal_rows(p: LongitudinalParams, s: LongitudinalState, t: np.ndarray,
+                      omega: np.ndarray, torque: np.ndarray, fx: np.ndarray,
+                      sigma: np.ndarray) -> None:
+    """The method ``p.method`` over a chunk: t (n,), omega, torque (n, 4) → ``fx`` (n, 4) N and
+    its one-sigma ``sigma`` (left as given, NaN, by the methods without one); ``s`` is
+    advanced in place."""
+    m = p.method
+    if m == UKF:
+        ukf_kernel(t, omega, torque, p.ukf, p.wm, p.wc, p.tau, s.x, s.P, s.hist_t, s.hist_w, fx,
+                   sigma, np.empty(fx.shape, dtype=np.bool_))
+    elif m == UKF_RW:
+        ukf_rw_kernel(t, omega, torque, p.iw, p.radius, p.r_omega, p.r_torque, p.q_force,
+                      p.q_force_high, p.omega_dot_high, p.p0_force, p.wm, p.wc, p.tau, s.x, s.P,
+                      s.hist_t, s.hist_w, s.prev_torque, fx, sigma,
+                      np.empty(fx.shape, dtype=np.bool_))
+    elif m == PID:
+        pid_kernel(t, omega, torque, p.iw, p.radius, p.eta1, p.eta2, p.eta3, s.state, s.prev, fx)
+    elif m == UIO:
+        uio_kernel(t, omega, torque, p.iw, p.radius, p.kp, p.f0, s.state[:2], s.prev, fx)
+    else:
+        naive_kernel(t, omega, torque, p.iw, p.radius, s.prev, fx)
+
+
 class LongitudinalEstimator:
     """One longitudinal method for the four corners, with its state (online or batch).
 
@@ -671,22 +735,27 @@ class LongitudinalEstimator:
         self.pid = pid or PIDParams()
         self.uio = uio or UIOParams()
         dim = 3 if method == "ukf" else 2
-        self._wm, self._wc, self._tau = ukf_weights(dim)
+        wm, wc, tau = ukf_weights(dim)
+        u, pid, uio = self.ukf, self.pid, self.uio
+        self.params = LongitudinalParams(
+            METHODS.index(method), float(self.iw), float(self.radius), self.kernel_params,
+            float(u.r_omega), float(u.r_torque), float(u.q_force), float(u.q_force_high),
+            float(u.omega_dot_high), float(u.p0_force), float(pid.eta1), float(pid.eta2),
+            float(pid.eta3), float(uio.kp), float(uio.f0), wm, wc, float(tau))
         self.reset()
 
     def reset(self) -> None:
         """Forget the state; the next sample initialises it."""
         window = self.ukf.omega_dot_window
         dim = 3 if self.method == "ukf" else 2
-        # ukf: columns 3.. hold the switches' and noise trackers' state (X_* constants)
-        self._x = np.zeros((4, UKF_COLS if self.method == "ukf" else dim))
-        self._P = np.zeros((4, dim, dim))
-        self._hist_t = np.full(window, np.nan)
-        self._hist_w = np.zeros((window, 4))
-        self._prev_torque = np.zeros(4)
-        self._state = np.zeros((3, 4))
-        self._prev = np.zeros((3, 4))
-        self._prev[0] = np.nan  # "no previous sample" (read by the naive kernel)
+        prev = np.zeros((3, 4))
+        prev[0] = np.nan  # "no previous sample" (read by the naive kernel)
+        # ukf: columns 3.. of x hold the switches' and noise trackers' state (X_* constants)
+        self.state = LongitudinalState(
+            x=np.zeros((4, UKF_COLS if self.method == "ukf" else dim)),
+            P=np.zeros((4, dim, dim)), hist_t=np.full(window, np.nan),
+            hist_w=np.zeros((window, 4)), prev_torque=np.zeros(4), state=np.zeros((3, 4)),
+            prev=prev)
 
     def advance(self, t: np.ndarray, omega: np.ndarray,
                 torque: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -694,23 +763,5 @@ class LongitudinalEstimator:
         n = t.shape[0]
         fx = np.empty((n, 4))
         sigma = np.full((n, 4), np.nan)
-        u, pid, uio = self.ukf, self.pid, self.uio
-        if self.method == "ukf":
-            high = np.empty((n, 4), dtype=np.bool_)
-            ukf_kernel(t, omega, torque, self.kernel_params, self._wm, self._wc, self._tau,
-                       self._x, self._P, self._hist_t, self._hist_w, fx, sigma, high)
-        elif self.method == "ukf_rw":
-            high = np.empty((n, 4), dtype=np.bool_)
-            ukf_rw_kernel(t, omega, torque, self.iw, self.radius, u.r_omega, u.r_torque,
-                          u.q_force, u.q_force_high, u.omega_dot_high, u.p0_force, self._wm,
-                          self._wc, self._tau, self._x, self._P, self._hist_t, self._hist_w,
-                          self._prev_torque, fx, sigma, high)
-        elif self.method == "pid":
-            pid_kernel(t, omega, torque, self.iw, self.radius, pid.eta1, pid.eta2, pid.eta3,
-                       self._state, self._prev, fx)
-        elif self.method == "uio":
-            uio_kernel(t, omega, torque, self.iw, self.radius, uio.kp, uio.f0, self._state[:2],
-                       self._prev, fx)
-        else:
-            naive_kernel(t, omega, torque, self.iw, self.radius, self._prev, fx)
+        longitudinal_rows(self.params, self.state, t, omega, torque, fx, sigma)
         return fx, sigma
