@@ -25,8 +25,14 @@ is reused); any change of input, vehicle, configuration or vestim code recompute
 Outputs are written atomically, so an output that exists is complete. ``force=True``
 (``--force``) recomputes everything (e.g. after upgrading NumPy or Numba).
 
-Failures: a log that cannot be read, has bad columns or whose vehicle cannot be found does
-not stop the others; its row has ``status = "failed"`` and the error message.
+Input checks: every log goes through :func:`vestim.io.sanity.gate`, the gate of ``vestim
+estimate``: a log it refuses (a yaw rate with the wrong sign, ax in g, …) fails with the
+gate's message, and an estimate's metadata holds the gate's ``warnings`` and
+``checks_not_run``, as ``vestim estimate`` writes them.
+
+Failures: a log that cannot be read, has bad columns, fails the input gate or whose vehicle
+cannot be found does not stop the others; its row has ``status = "failed"`` and the error
+message.
 
 Vehicles: one vehicle (a TOML path, a built-in name or a :class:`~vestim.io.vehicle.Vehicle`)
 for all logs; ``"auto"`` to find each log's own vehicle with :func:`vehicle_for_log`; or a
@@ -59,6 +65,7 @@ from vestim.errors import LogFormatError, VehicleFileError, VestimError, optiona
 from vestim.io import load_vehicle, read_log, write_log
 from vestim.io.files import atomic_path, write_text_atomic
 from vestim.io.log import METADATA_PREFIX
+from vestim.io.sanity import gate
 from vestim.io.vehicle import BUILTIN_VEHICLES, Vehicle
 from vestim.metrics import score
 from vestim.pipeline import Pipeline, PipelineConfig
@@ -461,6 +468,7 @@ def _run_one(job: _Job) -> dict[str, Any]:
                        vehicle=_vehicle_label(job.vehicle), wall_s=time.perf_counter() - t0)
             return row
         log = read_log(path, require=["measured"], wheel_radius=veh.body.wheel_radius)
+        checked = gate(log, veh, source=job.log)  # the input gate of `vestim estimate`
         pipe = Pipeline(veh, job.config)
         est = pipe.run(log)
         row.update(status="ok", output=job.out, samples=len(est), **_scores(est, log),
@@ -470,6 +478,7 @@ def _run_one(job: _Job) -> dict[str, Any]:
         meta = {"vehicle": veh.name, "force": cfg.force, "normal": cfg.normal,
                 "velocity": cfg.velocity, "fusion": cfg.fusion, "source": job.log,
                 **pipe.force.input_sources, "batch_key": key,
+                **checked.metadata([w for w in [pipe.unverified_warning()] if w]),
                 "batch_row": json.dumps({k: v for k, v in row.items()
                                          if k not in ("log", "output", "status", "error")})}
         write_log(est, out, metadata=meta, float32=True)  # as `vestim estimate` writes
@@ -543,8 +552,9 @@ def run_batch(
         The summary; failed logs are rows with ``status = "failed"``, never exceptions.
 
     Raises:
-        BatchError: no logs, two logs with the same stem (same output), or a scheduler that
-            cannot be used. MissingDependencyError: Dask missing for a Dask scheduler.
+        BatchError: no logs, two logs with the same stem (same output), an output that would
+            overwrite an input, or a scheduler that cannot be used. MissingDependencyError:
+            Dask missing for a Dask scheduler.
     """
     t0 = time.perf_counter()
     cfg = config or PipelineConfig()
@@ -559,6 +569,7 @@ def run_batch(
             raise BatchError(f"{seen[o]} and {p} would both write {o} (same file stem); rename "
                              "one or run them into different --out folders")
         seen[o] = p
+    _refuse_overwriting_inputs(paths, [*seen, out / "summary.parquet", out / "summary.md"])
     rows: dict[int, dict[str, Any]] = {}
     jobs: list[tuple[int, _Job]] = []
     for i, p in enumerate(paths):
@@ -596,6 +607,17 @@ def run_batch(
     wall = time.perf_counter() - t0
     pq_path, md_path = _write_summary(table, out, wall, workers, scheduler)
     return BatchSummary(table, pq_path, md_path, wall, workers)
+
+
+def _refuse_overwriting_inputs(inputs: Sequence[Path], outputs: Sequence[Path]) -> None:
+    """Raise BatchError when an output would replace an input (also through a link)."""
+    resolved = {p.resolve(): p for p in inputs}
+    for o in outputs:
+        src = resolved.get(o.resolve())
+        if src is not None:
+            raise BatchError(f"the output {o} would overwrite the input {src}; vestim never "
+                             "overwrites its inputs: give another --out folder (or rename the "
+                             "input)")
 
 
 def _as_vehicle_arg(v: Any) -> str | Vehicle:
