@@ -11,7 +11,6 @@ from collections.abc import Iterator
 from pathlib import Path
 from typing import TYPE_CHECKING, Annotated, Any
 
-import click
 import rich.markup
 import typer
 from rich.console import Console
@@ -52,11 +51,18 @@ BUILTINS = "hashemi_suv, compact_car"
 `vestim --help` does not import the io layer)."""
 
 
+class _MissingVehicle(typer.BadParameter):
+    """A usage error (exit status 2) printed as written, not as "Invalid value for …"."""
+
+    def format_message(self) -> str:
+        return self.message
+
+
 def _required_vehicle(value: str) -> str:
     """--vehicle has no default: a log estimated with another car's file is silently off (a
     4 % v_x error for hashemi_suv's file on a compact car's log, issue 30)."""
     if not value:
-        raise click.UsageError(
+        raise _MissingVehicle(
             "Missing option '--vehicle': give the vehicle TOML file of the car the log was "
             f"recorded with, or a built-in vehicle by name (built-ins: {BUILTINS}), e.g. "
             "--vehicle car.toml or --vehicle compact_car")

@@ -201,10 +201,12 @@ def parse_expression(text: str, names: frozenset[str] | set[str]) -> ast.Express
         if type(node) in _BINOPS or type(node) in _UNARY:
             continue  # the operator nodes themselves
         if isinstance(node, ast.Constant) and type(node.value) in (int, float):
+            number = node.value
+            assert isinstance(number, int | float)
             try:
-                float(node.value)
+                float(number)
             except OverflowError:  # an integer literal of more than 308 digits
-                digits = len(str(abs(node.value)))
+                digits = len(str(abs(number)))
                 raise ChannelMapError(
                     f"expression {text[:60]!r}{'…' if len(text) > 60 else ''}: a number of "
                     f"{digits} digits is beyond the float range (±1.8e308); write it with an "

@@ -426,10 +426,13 @@ def validate_sample(sample: Mapping[str, Any]) -> Sample:
         rng = SAMPLE_RANGES.get(key)
         if rng is None:
             if key == ch.T:
-                if isinstance(value, bool) or not isinstance(value, int | float | np.number):
-                    raise LogFormatError(f"sample t = {value!r}: t must be a number, in "
-                                         "seconds")
-                out[key] = float(value)
+                try:
+                    if isinstance(value, bool) or not isinstance(value, int | float | np.number):
+                        raise TypeError
+                    out[key] = float(value)
+                except (OverflowError, TypeError, ValueError):
+                    raise LogFormatError(f"sample t = {str(value)[:40]!r}: t must be a real "
+                                         "number, in seconds") from None
             continue
         if isinstance(value, bool) or not isinstance(value, int | float | np.number):
             out[key] = math.nan

@@ -29,7 +29,7 @@ from typing import Any, Literal, TypeVar
 
 from vestim.constants import G
 from vestim.errors import VehicleFileError
-from vestim.io.calibration import Calibration, parse_calibration
+from vestim.io.calibration import Calibration, length_unit, parse_calibration
 
 Drivetrain = Literal["awd", "fwd", "rwd"]
 DRIVETRAINS: tuple[str, ...] = ("awd", "fwd", "rwd")
@@ -101,27 +101,20 @@ MASS_RANGE = (50.0, 100_000.0)
 1650 kg car reads 1.65 in tonnes and 1 650 000 in grams."""
 
 
-def _length_unit(value: float, typical: float) -> str:
-    """The wrong unit, cm or mm, whose conversion of ``value`` lands nearest ``typical`` m."""
-    unit, scale = min((("centimetres", 100.0), ("millimetres", 1000.0)),
-                      key=lambda u: abs(math.log(value / u[1] / typical)))
-    return f"{unit} ({value:g} {unit[0]}m = {value / scale:g} m)"
-
-
 def _check_magnitudes(body: VehicleBody) -> None:
     """Wrong-unit magnitudes of ``[vehicle]`` (a radius in mm, a mass in g or t)."""
     r = body.wheel_radius
     if r > RADIUS_MAX:
         raise VehicleFileError(
             f"[vehicle] wheel_radius = {r:g} m is beyond {RADIUS_MAX:g} m (no road tyre is that "
-            f"large): this looks like {_length_unit(r, 0.35)}; give it in metres"
+            f"large): this looks like {length_unit(r, 0.35)}; give it in metres"
         )
     for name in ("lf", "lr", "track_f", "track_r", "cg_height", "roll_center_height"):
         v = getattr(body, name)
         if v > LENGTH_MAX:
             raise VehicleFileError(
                 f"[vehicle] {name} = {v:g} m is beyond {LENGTH_MAX:g} m: this looks like "
-                f"{_length_unit(v, 1.0)}; give it in metres"
+                f"{length_unit(v, 1.0)}; give it in metres"
             )
     lo, hi = MASS_RANGE
     if body.mass < lo:
@@ -438,8 +431,29 @@ def vehicle_from_dict(data: dict[str, Any], name: str = "vehicle") -> Vehicle:
                    if "stiffness" in data else None),
         name=name,
         given=frozenset(t for t in _TABLES if t in data and t not in ("vehicle", "tire")),
-        calibration=parse_calibration(data["calibration"]) if "calibration" in data else None,
+        calibration=_calibration(data["calibration"], body) if "calibration" in data else None,
     )
+
+
+RADIUS_RATIO = (0.8, 1.25)
+"""A calibrated wheel radius over ``[vehicle] wheel_radius``: load, pressure and wear move a
+tyre's effective radius by a few per cent; 20 % off is another tyre or another unit."""
+
+
+def _calibration(table: Any, body: VehicleBody) -> Calibration:
+    """``[calibration]`` (its own ranges, :data:`vestim.io.calibration.RANGES`), and the
+    calibrated radii against ``[vehicle] wheel_radius``."""
+    cal = parse_calibration(table)
+    lo, hi = RADIUS_RATIO
+    for c in ("fl", "fr", "rl", "rr"):
+        r = cal.get("wheels", f"radius_{c}")
+        if r is not None and not lo <= r.value / body.wheel_radius <= hi:
+            raise VehicleFileError(
+                f"[calibration.wheels] radius_{c} = {r.value:g} m is "
+                f"{r.value / body.wheel_radius:.3g} × [vehicle] wheel_radius = "
+                f"{body.wheel_radius:g} m, outside the plausible {lo:g}–{hi:g}: check both "
+                "values (or recalibrate from logs of this car)")
+    return cal
 
 
 BUILTIN_VEHICLES: tuple[str, ...] = ("hashemi_suv", "compact_car")
