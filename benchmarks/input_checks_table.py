@@ -289,7 +289,9 @@ the measured channels) and the library's `vestim.estimate()`:
 
 1. **Vehicle file** (`vestim.io.load_vehicle`): magnitudes no road vehicle has in SI (a wheel
    radius above 2 m, a length above 20 m, a mass outside 50 kg–100 t) name the unit they look
-   like. Every `[calibration.*]` value has a plausible range (`vestim.io.calibration.RANGES`;
+   like; friction coefficients (`mu_s`, `mu_c` ≤ 3: 120 is per cent), `steering_ratio`
+   (1–40), `v_s`, `alpha`, the `[aerodynamics]` values and `[powertrain] max_speed` have
+   plausible ranges too. Every `[calibration.*]` value has a plausible range (`vestim.io.calibration.RANGES`;
    the message names the table, the key, the range and the likely fix): `radius_fl = 331`
    looks like millimetres, `mount_yaw = π` is a sensor turned round (that belongs in the
    channel map's `[imu] frame`/`mounting`; a calibration holds a misalignment of at most

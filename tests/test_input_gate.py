@@ -292,6 +292,25 @@ def test_a_mount_yaw_of_pi_is_refused() -> None:
     assert _suv_with({"imu": {"mount_yaw": 0.02, "sigma_mount_yaw": 0.01}}).calibration is not None
 
 
+def test_other_tables_are_range_checked_too() -> None:
+    """The [vehicle], [tire], [aerodynamics] and [powertrain] values a unit mistake moves
+    by a factor of 3.6 or 100 have ranges too; the message names table, key and range."""
+    text = (resources.files("vestim") / "data" / "vehicles" / "hashemi_suv.toml").read_text()
+    for table, key, value, message in (
+            ("tire", "mu_s", 120.0, r"\[tire\] mu_s = 120 is outside the plausible range "
+                                    r"\[0, 3\].*per cent: divide by 100"),
+            ("vehicle", "steering_ratio", 900.0, r"\[vehicle\] steering_ratio = 900 is outside"),
+            ("aerodynamics", "air_density", 1200.0, r"air_density = 1200 is outside the "
+                                                    r"plausible range \[0.5, 2\]"),
+            ("powertrain", "max_speed", 180.0, r"max_speed = 180 is outside.*km/h")):
+        data = tomllib.loads(text)
+        data[table][key] = value
+        if key == "mu_s":
+            data["tire"]["mu_c"] = 0.8
+        with pytest.raises(VehicleFileError, match=message):
+            vehicle_from_dict(data)
+
+
 # --- 5. no output overwrites an input ------------------------------------------------------------
 
 

@@ -370,19 +370,23 @@ def _estimate_stiffness(log_path: Path, out: Path, vehicle: str, particles: int,
     from vestim.estimators.stiffness import estimate_stiffness
     from vestim.io import load_vehicle, read_log, write_log
     from vestim.io.files import check_output_path
+    from vestim.io.sanity import gate
 
     try:
         check_output_path(out, inputs=[log_path], suffixes=LOG_SUFFIXES)
         veh = load_vehicle(vehicle)
         log = read_log(log_path)
+        checked = gate(log, veh, source=str(log_path))  # the input gate of the pipeline path
         _note_compiling()
         t0 = time.perf_counter()
         est = estimate_stiffness(log, veh, particles=particles, seed=seed)
         path = write_log(est, out, metadata={"vehicle": veh.name, "method": "stiffness-pf",
                                              "particles": str(particles), "seed": str(seed),
-                                             "source": str(log_path)})
+                                             "source": str(log_path), **checked.metadata()})
     except (VestimError, ValueError, OSError) as exc:
         raise _fail(exc) from None
+    for w in checked.warnings:
+        console.print(f"[yellow]warning:[/yellow] {rich.markup.escape(w.message)}")
     console.print(rich.markup.escape(f"wrote {path} ({len(est)} samples, "
                                      f"{time.perf_counter() - t0:.2f} s)"))
 
