@@ -60,7 +60,8 @@ def main() -> None:
         print(f"input: {n} samples ({args.hours:g} h), {src.stat().st_size / 2**20:.0f} MiB, "
               f"written in {time.perf_counter() - t0:.1f} s")
         t0 = time.perf_counter()
-        subprocess.run([sys.executable, "-m", "vestim", "estimate", str(src), "--out", str(out)],
+        subprocess.run([sys.executable, "-m", "vestim", "estimate", str(src), "--vehicle", "hashemi_suv",
+                        "--out", str(out)],
                        check=True)
         wall = time.perf_counter() - t0
         peak = resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss / 2**20  # kB -> GiB

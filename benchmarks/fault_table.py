@@ -311,7 +311,10 @@ What is flagged where:
   steadily, so a step that starts inside a manoeuvre is not seen; while flagged the reading
   minus the estimated step is used);
 - **NaN burst through `step()`**: up to HOLD_S = {HOLD_S} s the last finite value is held and the
-  row gets bit 32; longer, `step()` raises `LogFormatError` naming the channel. `run()` refuses
+  row gets bit 32; longer, `step()` raises `LogFormatError` naming the channel. A value of
+  the wrong type or outside its channel's physical range (`vestim.io.sanity.validate_sample`,
+  docs/input-checks.md) is such a dropped value too (one `ax = 1e6` used to give |v_x| =
+  1760 m/s unflagged). `run()` refuses
   a NaN in a measured channel before estimating (`validate_log`), naming column and row.
 
 "recovery –": the fault lasts to the end of the log. "flag latency never": not flagged.

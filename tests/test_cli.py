@@ -60,14 +60,16 @@ def test_score_and_plot_commands(tmp_path):
     sim = tmp_path / "sim.parquet"
     est = tmp_path / "est.parquet"
     assert runner.invoke(app, ["simulate", "lc_wet", "--out", str(sim)]).exit_code == 0
-    assert runner.invoke(app, ["estimate", str(sim), "--out", str(est)]).exit_code == 0
+    assert runner.invoke(app, ["estimate", "--vehicle", "hashemi_suv",
+                               str(sim), "--out", str(est)]).exit_code == 0
     table = runner.invoke(app, ["score", str(est), str(sim)])
     assert table.exit_code == 0 and "| vx |" in table.stdout
     as_json = runner.invoke(app, ["score", str(est), str(sim), "--json"])
     records = json.loads(as_json.stdout)
     vx = next(r for r in records if r["channel"] == "vx")
     assert vx["nrms_pct"] < 2.0  # lane change on wet: the reference filter measures ~0.1 %
-    plots = runner.invoke(app, ["plot", str(est), str(sim), "--out", str(tmp_path / "png")])
+    plots = runner.invoke(app, ["plot", "--vehicle", "hashemi_suv",
+                                str(est), str(sim), "--out", str(tmp_path / "png")])
     assert plots.exit_code == 0
     files = plots.stdout.split()
     assert files and all(Path(f).read_bytes()[:8] == b"\x89PNG\r\n\x1a\n" for f in files)
@@ -76,19 +78,20 @@ def test_score_and_plot_commands(tmp_path):
 def test_design_commands(tmp_path):
     """design lpv writes a gains file that design check certifies; bad gains exit non-zero."""
     gains = tmp_path / "gains.toml"
-    res = runner.invoke(app, ["design", "lpv", "--out", str(gains)])
+    res = runner.invoke(app, ["design", "lpv", "--vehicle", "hashemi_suv", "--out", str(gains)])
     assert res.exit_code == 0, res.output
-    check = runner.invoke(app, ["design", "check", "--gains", str(gains)])
+    check = runner.invoke(app, ["design", "check", "--vehicle", "hashemi_suv", "--gains", str(gains)])
     assert check.exit_code == 0, check.output
     assert "VERIFIED" in check.stdout
     sim = tmp_path / "sim.parquet"
     assert runner.invoke(app, ["simulate", "lc_wet", "--out", str(sim)]).exit_code == 0
-    est = runner.invoke(app, ["estimate", str(sim), "--velocity", "lpv", "--gains", str(gains),
+    est = runner.invoke(app, ["estimate", "--vehicle", "hashemi_suv",
+                              str(sim), "--velocity", "lpv", "--gains", str(gains),
                               "--out", str(tmp_path / "est.csv")])
     assert est.exit_code == 0, est.output
     bad = tmp_path / "bad.toml"
     bad.write_text("[longitudinal]\nomega = [0.0]\n")
-    res = runner.invoke(app, ["design", "check", "--gains", str(bad)])
+    res = runner.invoke(app, ["design", "check", "--vehicle", "hashemi_suv", "--gains", str(bad)])
     assert res.exit_code == 2 and "Traceback" not in res.output
 
 
@@ -97,7 +100,8 @@ def test_estimate_stiffness_pf_writes_stiffness_channels(tmp_path):
     sim = tmp_path / "sim.parquet"
     assert runner.invoke(app, ["simulate", "stiffness_study", "--out", str(sim)]).exit_code == 0
     out = tmp_path / "k.parquet"
-    res = runner.invoke(app, ["estimate", str(sim), "--method", "stiffness-pf", "--particles",
+    res = runner.invoke(app, ["estimate", "--vehicle", "hashemi_suv",
+                              str(sim), "--method", "stiffness-pf", "--particles",
                               "100", "--seed", "3", "--out", str(out)])
     assert res.exit_code == 0, res.output
     est = read_log(out)
@@ -121,7 +125,7 @@ def test_estimate_refuses_to_overwrite_its_input(tmp_path):
     src = _short_log(tmp_path)
     before = src.read_bytes()
     for out in (src, tmp_path / "." / "log.parquet"):
-        result = runner.invoke(app, ["estimate", str(src), "--out", str(out)])
+        result = runner.invoke(app, ["estimate", "--vehicle", "hashemi_suv", str(src), "--out", str(out)])
         assert result.exit_code == 2
         assert "is the input" in result.output
     assert src.read_bytes() == before
@@ -136,7 +140,8 @@ def test_output_extension_is_checked_before_the_work(tmp_path, monkeypatch):
 
     monkeypatch.setattr(vestim.pipeline, "Pipeline", boom)
     src = _short_log(tmp_path)
-    result = runner.invoke(app, ["estimate", str(src), "--out", str(tmp_path / "est.xlsx")])
+    result = runner.invoke(app, ["estimate", "--vehicle", "hashemi_suv",
+                                 str(src), "--out", str(tmp_path / "est.xlsx")])
     assert result.exit_code == 2
     assert "unsupported extension '.xlsx'" in result.output
 
@@ -146,7 +151,8 @@ def test_first_run_says_it_compiles(tmp_path, monkeypatch):
 
     monkeypatch.setattr(_cache, "is_cold", lambda: True)
     src = _short_log(tmp_path)
-    result = runner.invoke(app, ["estimate", str(src), "--out", str(tmp_path / "est.parquet")])
+    result = runner.invoke(app, ["estimate", "--vehicle", "hashemi_suv",
+                                 str(src), "--out", str(tmp_path / "est.parquet")])
     assert result.exit_code == 0, result.output
     assert "compiling vestim's kernels" in result.output
 
@@ -185,7 +191,8 @@ def test_score_coverage_table(tmp_path):
     sim = tmp_path / "sim.parquet"
     est = tmp_path / "est.parquet"
     assert runner.invoke(app, ["simulate", "lc_wet", "--out", str(sim)]).exit_code == 0
-    assert runner.invoke(app, ["estimate", str(sim), "--out", str(est)]).exit_code == 0
+    assert runner.invoke(app, ["estimate", "--vehicle", "hashemi_suv",
+                               str(sim), "--out", str(est)]).exit_code == 0
     result = runner.invoke(app, ["score", str(est), str(sim), "--coverage"])
     assert result.exit_code == 0, result.output
     assert "| vx | m/s |" in result.output and "within 1σ %" in result.output
@@ -199,7 +206,8 @@ def test_non_finite_or_mistyped_options_are_clear_errors(tmp_path):
     src = _short_log(tmp_path)
     cfg = tmp_path / "cfg.toml"
     cfg.write_text("[pipeline]\ngains = 5\n", encoding="utf-8")
-    res = runner.invoke(app, ["estimate", str(src), "--out", str(tmp_path / "e.parquet"),
+    res = runner.invoke(app, ["estimate", "--vehicle", "hashemi_suv",
+                              str(src), "--out", str(tmp_path / "e.parquet"),
                               "--config", str(cfg)])
     assert res.exit_code == 2 and "gains = 5: the path of a gains file" in res.output
 

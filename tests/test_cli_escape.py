@@ -84,7 +84,7 @@ def test_estimate_stops_on_a_flipped_yaw_rate(tmp_path: Path) -> None:
     log["yaw_rate"] = -log["yaw_rate"]
     write_log(log, path)
     out = tmp_path / "est.parquet"
-    res = runner.invoke(app, ["estimate", str(path), "--out", str(out)])
+    res = runner.invoke(app, ["estimate", "--vehicle", "hashemi_suv", str(path), "--out", str(out)])
     assert res.exit_code == 2, res.output
     text = _flat(res.output)
     assert "column 'yaw_rate' has the wrong sign" in text and "negate yaw_rate" in text
@@ -102,7 +102,7 @@ def test_estimate_stores_warnings_in_the_metadata(tmp_path: Path) -> None:
         log[f"omega_{c}"] = log[f"omega_{c}"] * 3.6 * 0.33
     write_log(log, path)
     out = tmp_path / "est.parquet"
-    res = runner.invoke(app, ["estimate", str(path), "--out", str(out)])
+    res = runner.invoke(app, ["estimate", "--vehicle", "hashemi_suv", str(path), "--out", str(out)])
     assert res.exit_code == 0, res.output
     assert "warning: columns omega_fl, omega_fr, omega_rl, omega_rr may be in km/h" in _flat(
         res.output)
@@ -110,7 +110,8 @@ def test_estimate_stores_warnings_in_the_metadata(tmp_path: Path) -> None:
     warnings = json.loads(meta[b"vestim.warnings"])
     assert [w["channel"] for w in warnings] == ["omega_fl, omega_fr, omega_rl, omega_rr"]
     assert warnings[0]["severity"] == "warning" and "km/h" in warnings[0]["message"]
-    res = runner.invoke(app, ["estimate", str(tmp_path / "clean.parquet"), "--out",
+    res = runner.invoke(app, ["estimate", "--vehicle", "hashemi_suv",
+                              str(tmp_path / "clean.parquet"), "--out",
                               str(tmp_path / "clean_est.parquet")])
     assert res.exit_code == 0, res.output
     assert "warning:" not in res.output

@@ -104,19 +104,21 @@ def test_cli_estimate_writes_the_spec_channels(tmp_path, log):
     src = tmp_path / "in.parquet"
     write_log(log, src)
     out = tmp_path / "est.csv"
-    res = CliRunner().invoke(app, ["estimate", str(src), "--out", str(out)])
+    res = CliRunner().invoke(app, ["estimate", "--vehicle", "hashemi_suv", str(src), "--out", str(out)])
     assert res.exit_code == 0, res.output
     est = read_log(out)
     for col in ("vx", "vy", "vx_fl", "fx_rr", "fz_fl", "slip_ratio_fl", "slip_angle_rr"):
         assert col in est.columns
-    bad = CliRunner().invoke(app, ["estimate", str(src), "--out", str(out), "--force", "magic"])
+    bad = CliRunner().invoke(app, ["estimate", "--vehicle", "hashemi_suv",
+                                   str(src), "--out", str(out), "--force", "magic"])
     assert bad.exit_code == 2 and "force method 'magic'" in bad.output
 
 
 def test_cli_estimate_names_a_missing_column(tmp_path, log):
     src = tmp_path / "in.csv"
     write_log(log.drop(columns=["omega_fr"]), src)
-    res = CliRunner().invoke(app, ["estimate", str(src), "--out", str(tmp_path / "o.csv")])
+    res = CliRunner().invoke(app, ["estimate", "--vehicle", "hashemi_suv",
+                                   str(src), "--out", str(tmp_path / "o.csv")])
     assert res.exit_code == 2 and "omega_fr" in res.output and "Traceback" not in res.output
 
 
@@ -125,7 +127,7 @@ def test_cli_estimate_without_torques_says_so(tmp_path, log):
     src = tmp_path / "in.parquet"
     write_log(strip(log).drop(columns=[f"torque_{c}" for c in ("fl", "fr", "rl", "rr")]), src)
     out = tmp_path / "est.parquet"
-    res = CliRunner().invoke(app, ["estimate", str(src), "--out", str(out)])
+    res = CliRunner().invoke(app, ["estimate", "--vehicle", "hashemi_suv", str(src), "--out", str(out)])
     assert res.exit_code == 0, res.output
     assert "chassis equation" in res.output
     est = read_log(out)
@@ -233,13 +235,15 @@ def test_cli_estimate_fusion_flag(tmp_path, log):
     src = tmp_path / "in.parquet"
     write_log(strip(log).iloc[:600], src)
     out = tmp_path / "est.parquet"
-    res = CliRunner().invoke(app, ["estimate", str(src), "--out", str(out), "--velocity", "kf",
+    res = CliRunner().invoke(app, ["estimate", "--vehicle", "hashemi_suv",
+                                   str(src), "--out", str(out), "--velocity", "kf",
                                    "--fusion", "opinion"])
     assert res.exit_code == 0, res.output
     est = read_log(out)
     assert {f"confidence_{c}" for c in ("fl", "fr", "rl", "rr")} <= set(est.columns)
     assert est.attrs["fusion"] == "opinion"
-    bad = CliRunner().invoke(app, ["estimate", str(src), "--out", str(out), "--fusion", "vote"])
+    bad = CliRunner().invoke(app, ["estimate", "--vehicle", "hashemi_suv",
+                                   str(src), "--out", str(out), "--fusion", "vote"])
     assert bad.exit_code == 2 and "fusion method 'vote'" in bad.output
 
 

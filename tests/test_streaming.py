@@ -117,15 +117,15 @@ def test_cli_streams_a_parquet_log_to_the_same_result(tmp_path: Path, gap_log: p
     """`vestim estimate` on a Parquet log reads, estimates and writes it in pieces (here of
     1500 rows, with the input checks on the first 3000): the file equals run() of the whole
     log rounded to float32 (t in float64), and the gap is in its metadata."""
-    import vestim.cli as cli
     import vestim.io.log as io_log
+    import vestim.io.sanity as sanity
 
     monkeypatch.setattr(io_log, "STREAM_ROWS", 1500)
-    monkeypatch.setattr(cli, "SANITY_ROWS", 3000)
+    monkeypatch.setattr(sanity, "GATE_ROWS", 3000)
     src = tmp_path / "in.parquet"
     _write_row_groups(gap_log, src, 500)
     out = tmp_path / "est.parquet"
-    res = CliRunner().invoke(app, ["estimate", str(src), "--out", str(out)])
+    res = CliRunner().invoke(app, ["estimate", "--vehicle", "hashemi_suv", str(src), "--out", str(out)])
     assert res.exit_code == 0, res.output
     est, whole = read_log(out), Pipeline(SUV).run(gap_log)
     assert est["t"].dtype == np.float64 and (est.drop(columns="t").dtypes == np.float32).all()

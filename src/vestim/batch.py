@@ -37,8 +37,14 @@ Interrupting (Ctrl-C) raises :class:`BatchInterrupted` naming the logs that fini
 outputs are complete and are skipped when the same command runs again. A local cluster's
 scratch space (Dask's ``dask-scratch-space``) lives in a temporary folder removed on exit.
 
-Failures: a log that cannot be read, has bad columns or whose vehicle cannot be found does
-not stop the others; its row has ``status = "failed"`` and the error message.
+Input checks: every log goes through :func:`vestim.io.sanity.gate`, the gate of ``vestim
+estimate``: a log it refuses (a yaw rate with the wrong sign, ax in g, …) fails with the
+gate's message, and an estimate's metadata holds the gate's ``warnings`` and
+``checks_not_run``, as ``vestim estimate`` writes them.
+
+Failures: a log that cannot be read, has bad columns, fails the input gate or whose vehicle
+cannot be found does not stop the others; its row has ``status = "failed"`` and the error
+message.
 
 Vehicles: one vehicle (a TOML path, a built-in name or a :class:`~vestim.io.vehicle.Vehicle`)
 for all logs; ``"auto"`` to find each log's own vehicle with :func:`vehicle_for_log`; or a
@@ -78,6 +84,7 @@ from vestim.errors import (
 from vestim.io import load_vehicle, read_log, write_log
 from vestim.io.files import atomic_path, write_text_atomic
 from vestim.io.log import METADATA_PREFIX
+from vestim.io.sanity import gate
 from vestim.io.vehicle import BUILTIN_VEHICLES, Vehicle
 from vestim.metrics import score
 from vestim.pipeline import Pipeline, PipelineConfig
@@ -617,6 +624,7 @@ def _run_one(job: _Job) -> dict[str, Any]:
             log = read_log(path, require=["measured"], wheel_radius=veh.body.wheel_radius)
         else:
             log, imported = _import(path, job.channel_map, veh.body.wheel_radius)
+        checked = gate(log, veh, source=job.log)  # the input gate of `vestim estimate`
         pipe = Pipeline(veh, job.config)
         est = pipe.run(log)
         row.update(status="ok", output=job.out, samples=len(est), **_scores(est, log),
@@ -626,6 +634,7 @@ def _run_one(job: _Job) -> dict[str, Any]:
         meta = {"vehicle": veh.name, "force": cfg.force, "normal": cfg.normal,
                 "velocity": cfg.velocity, "fusion": cfg.fusion, "source": job.log,
                 **pipe.force.input_sources, **imported, "batch_key": key,
+                **checked.metadata([w for w in [pipe.unverified_warning()] if w]),
                 "batch_row": json.dumps({k: v for k, v in row.items()
                                          if k not in ("log", "output", "status", "error")})}
         write_log(est, out, metadata=meta, float32=True)  # as `vestim estimate` writes
@@ -705,9 +714,10 @@ def run_batch(
         The summary; failed logs are rows with ``status = "failed"``, never exceptions.
 
     Raises:
-        BatchError: no logs, two logs with the same stem (same output), or a scheduler that
-            cannot be used. ChannelMapError: an invalid map. MissingDependencyError: Dask
-            missing for a Dask scheduler. BatchInterrupted: Ctrl-C (what finished is named).
+        BatchError: no logs, two logs with the same stem (same output), an output that would
+            overwrite an input, or a scheduler that cannot be used. ChannelMapError: an invalid
+            map. MissingDependencyError: Dask missing for a Dask scheduler. BatchInterrupted:
+            Ctrl-C (what finished is named).
     """
     t0 = time.perf_counter()
     cfg = config or PipelineConfig()
@@ -722,6 +732,7 @@ def run_batch(
             raise BatchError(f"{seen[o]} and {p} would both write {o} (same file stem); rename "
                              "one or run them into different --out folders")
         seen[o] = p
+    _refuse_overwriting_inputs(paths, [*seen, out / "summary.parquet", out / "summary.md"])
     from vestim.io.channel_map import load_channel_map
 
     map_kinds = [(str(m), load_channel_map(m).kind) for m in maps]
@@ -780,6 +791,17 @@ def _written_since(path: Path, since: float) -> bool:
         return path.stat().st_mtime >= since - 1.0
     except OSError:
         return False
+
+
+def _refuse_overwriting_inputs(inputs: Sequence[Path], outputs: Sequence[Path]) -> None:
+    """Raise BatchError when an output would replace an input (also through a link)."""
+    resolved = {p.resolve(): p for p in inputs}
+    for o in outputs:
+        src = resolved.get(o.resolve())
+        if src is not None:
+            raise BatchError(f"the output {o} would overwrite the input {src}; vestim never "
+                             "overwrites its inputs: give another --out folder (or rename the "
+                             "input)")
 
 
 def _as_vehicle_arg(v: Any) -> str | Vehicle:

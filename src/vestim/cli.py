@@ -46,14 +46,39 @@ def _main(
 ) -> None:
     """Corner-based vehicle state and tire-force estimation."""
 
-VehicleOpt = Annotated[str, typer.Option("--vehicle", help="Vehicle TOML file or built-in name "
-                                         "(hashemi_suv, compact_car).")]
+BUILTINS = "hashemi_suv, compact_car"
+"""The built-in vehicles' names (vestim.io.vehicle.BUILTIN_VEHICLES; written out here so that
+`vestim --help` does not import the io layer)."""
+
+
+class _MissingVehicle(typer.BadParameter):
+    """A usage error (exit status 2) printed as written, not as "Invalid value for …"."""
+
+    def format_message(self) -> str:
+        return self.message
+
+
+def _required_vehicle(value: str) -> str:
+    """--vehicle has no default: a log estimated with another car's file is silently off (a
+    4 % v_x error for hashemi_suv's file on a compact car's log, issue 30)."""
+    if not value:
+        raise _MissingVehicle(
+            "Missing option '--vehicle': give the vehicle TOML file of the car the log was "
+            f"recorded with, or a built-in vehicle by name (built-ins: {BUILTINS}), e.g. "
+            "--vehicle car.toml or --vehicle compact_car")
+    return value
+
+
+VehicleOpt = Annotated[str, typer.Option(
+    "--vehicle", callback=_required_vehicle, show_default=False,
+    help=f"Vehicle TOML file or built-in name ({BUILTINS}); required.")]
+"""A required --vehicle (its empty default is refused by the callback with the built-ins'
+names; Typer's own "Missing option" would not name them)."""
+SimVehicleOpt = Annotated[str, typer.Option("--vehicle", help="Vehicle to simulate: a TOML "
+                                            f"file or built-in name ({BUILTINS}).")]
 
 
 LOG_SUFFIXES = (".csv", ".parquet", ".pq")
-SANITY_ROWS = 720_000
-"""`vestim estimate` runs the cross-channel input checks on the first this many rows (1 h at
-200 Hz; a whole log below that): the checks need the log in memory, the estimate does not."""
 PROGRESS_AFTER_S = 2.0
 """A run shows a progress bar once it has taken this long (shorter runs stay quiet)."""
 
@@ -197,7 +222,7 @@ def simulate_cmd(
     tire: Annotated[str | None, typer.Option(help="Tire plant: magic | lugre.")] = None,
     tc: Annotated[bool | None, typer.Option("--tc/--no-tc", help="Traction control.")] = None,
     abs_: Annotated[bool | None, typer.Option("--abs/--no-abs", help="ABS.")] = None,
-    vehicle: VehicleOpt = "hashemi_suv",
+    vehicle: SimVehicleOpt = "hashemi_suv",
     seed: Annotated[int, typer.Option(help="Sensor-noise seed.")] = 0,
     rate: Annotated[float, typer.Option(help="Sensor sampling rate, Hz.")] = 200.0,
     sensors: Annotated[str, typer.Option(help="default | realistic (vibration, 4× noise, "
@@ -226,7 +251,7 @@ def simulate_cmd(
 def estimate_cmd(
     log_path: Annotated[Path, typer.Argument(metavar="LOG", help="Drive log (.csv or .parquet).")],
     out: Annotated[Path, typer.Option("--out", help="Output log of estimates (.csv or .parquet).")],
-    vehicle: VehicleOpt = "hashemi_suv",
+    vehicle: VehicleOpt = "",
     velocity: Annotated[str | None, typer.Option(help="Velocity stage (default fused); `vestim "
                                                  "methods velocity` lists the choices.")] = None,
     fusion: Annotated[str | None, typer.Option(help="Corner-to-CG fusion (default axle); `vestim "
@@ -264,8 +289,9 @@ def estimate_cmd(
 
     import pandas as pd
 
-    from vestim.io import LogWriter, check_log, iter_log, load_vehicle, parquet_rows, read_log
+    from vestim.io import LogWriter, iter_log, load_vehicle, parquet_rows, read_log
     from vestim.io.files import check_output_path
+    from vestim.io.sanity import GATE_ROWS, gate
     from vestim.pipeline import Pipeline, PipelineConfig
 
     try:
@@ -288,13 +314,14 @@ def estimate_cmd(
             log = (read_log(log_path, require=["measured"], wheel_radius=radius)
                    if map_path is None else _import_for_estimate(log_path, map_path, radius))
             total, pieces = len(log), iter([log])
-        # Cross-channel checks (docs/input-checks.md) on the first SANITY_ROWS rows: errors
-        # exit 2 before anything is written, warnings are kept.
+        # The input gate (docs/input-checks.md) on the first GATE_ROWS rows: errors exit 2
+        # before anything is written, warnings are kept.
         head: list[pd.DataFrame] = []
-        while sum(map(len, head)) < SANITY_ROWS and (piece := next(pieces, None)) is not None:
+        while sum(map(len, head)) < GATE_ROWS and (piece := next(pieces, None)) is not None:
             head.append(piece)
-        warnings = check_log(head[0] if len(head) == 1 else pd.concat(head, ignore_index=True),
-                             veh, source=str(log_path))
+        checked = gate(head[0] if len(head) == 1 else pd.concat(head, ignore_index=True),
+                       veh, source=str(log_path))
+        warnings = checked.warnings
         t0 = time.perf_counter()
         _note_compiling()
         pipe = Pipeline(veh, cfg)
@@ -307,9 +334,7 @@ def estimate_cmd(
                     "velocity": cfg.velocity, "fusion": cfg.fusion, "source": str(log_path),
                     **_provenance(vehicle, cfg),
                     **pipe.force.input_sources, **pipe.force.roll_assumption,
-                    "warnings": json.dumps([w.as_dict() for w in warnings]
-                                           + [w for w in [pipe.unverified_warning()] if w],
-                                           ensure_ascii=False),
+                    **checked.metadata([w for w in [pipe.unverified_warning()] if w]),
                     "gaps": json.dumps(pipe.gaps)}
             writer.metadata.update(meta)
         path, rows, channels = writer.path, writer.rows, len(writer.columns) - 1
@@ -345,19 +370,23 @@ def _estimate_stiffness(log_path: Path, out: Path, vehicle: str, particles: int,
     from vestim.estimators.stiffness import estimate_stiffness
     from vestim.io import load_vehicle, read_log, write_log
     from vestim.io.files import check_output_path
+    from vestim.io.sanity import gate
 
     try:
         check_output_path(out, inputs=[log_path], suffixes=LOG_SUFFIXES)
         veh = load_vehicle(vehicle)
         log = read_log(log_path)
+        checked = gate(log, veh, source=str(log_path))  # the input gate of the pipeline path
         _note_compiling()
         t0 = time.perf_counter()
         est = estimate_stiffness(log, veh, particles=particles, seed=seed)
         path = write_log(est, out, metadata={"vehicle": veh.name, "method": "stiffness-pf",
                                              "particles": str(particles), "seed": str(seed),
-                                             "source": str(log_path)})
+                                             "source": str(log_path), **checked.metadata()})
     except (VestimError, ValueError, OSError) as exc:
         raise _fail(exc) from None
+    for w in checked.warnings:
+        console.print(f"[yellow]warning:[/yellow] {rich.markup.escape(w.message)}")
     console.print(rich.markup.escape(f"wrote {path} ({len(est)} samples, "
                                      f"{time.perf_counter() - t0:.2f} s)"))
 
@@ -466,6 +495,9 @@ def calibrate_cmd(
         md = write_report(result, report) if report is not None else None
     except (VestimError, ValueError, OSError) as exc:
         raise _fail(exc) from None
+    for log, checked in zip(logs, result.checks, strict=True):
+        for w in checked.warnings:
+            console.print(f"[yellow]warning:[/yellow] {rich.markup.escape(f'{log}: {w.message}')}")
     values = result.values
     idle = sorted(k for k, v in values.items() if not v.excited)
     console.print(rich.markup.escape(
@@ -507,7 +539,7 @@ def plot_cmd(
     reference: Annotated[Path | None, typer.Argument(metavar="[REFERENCE]",
                                                      help="Log with ref_ channels.")] = None,
     out: Annotated[Path, typer.Option("--out", help="Output folder for the PNGs.")] = Path("out/plots"),
-    vehicle: VehicleOpt = "hashemi_suv",
+    vehicle: VehicleOpt = "",
 ) -> None:
     """Draw the papers' figure types (speeds with wheel speeds, CG and corner velocities, forces)."""
     from vestim.io import load_vehicle, read_log
@@ -528,24 +560,48 @@ def report_cmd(
     estimate: Annotated[Path, typer.Argument(metavar="ESTIMATE", help="Log of estimates (a .parquet "
                                              "file also gives its metadata).")],
     reference: Annotated[Path | None, typer.Argument(
-        metavar="[REFERENCE]", help="Log with ref_ channels (and omega_*, ax, ay).")] = None,
+        metavar="[REFERENCE]", help="Log with ref_ channels (and omega_*, ax, ay): the log the "
+        "estimate was made from.")] = None,
     out: Annotated[Path, typer.Option("--out", help="HTML file to write.")] = Path("report.html"),
-    vehicle: VehicleOpt = "hashemi_suv",
+    vehicle: VehicleOpt = "",
     title: Annotated[str | None, typer.Option(help="Page title.")] = None,
+    unpaired: Annotated[bool, typer.Option(
+        "--unpaired", help="Compare with a REFERENCE that is not the estimate's own log (its "
+        "metadata 'source' or its time span differ); the report then says so.")] = False,
 ) -> None:
-    """Write one self-contained interactive HTML report (plotly, works offline) of an estimate."""
+    """Write one self-contained interactive HTML report (plotly, works offline) of an estimate.
+
+    REFERENCE must be the log the estimate was made from (its metadata 'source', the same time
+    span); its measured channels go through the input gate of `vestim estimate`."""
     from vestim.io import load_vehicle, read_log
+    from vestim.io.channels import MEASURED_REQUIRED
     from vestim.io.files import check_output_path
+    from vestim.io.sanity import gate
+    from vestim.report.data import check_pairing
     from vestim.report.html import write_html_report
 
     try:
         check_output_path(out, inputs=[estimate, reference], suffixes=(".html", ".htm"))
         veh = load_vehicle(vehicle)
+        est = read_log(estimate)
+        ref = read_log(reference) if reference else None
         meta = {"estimate": str(estimate), "reference": str(reference) if reference else "none",
                 "vehicle": veh.name, "wheel_radius": f"{veh.body.wheel_radius:g} m"}
-        path = write_html_report(read_log(estimate), read_log(reference) if reference else None,
-                                 out, wheel_radius=veh.body.wheel_radius, metadata=meta,
-                                 title=title or f"vestim report: {estimate.name}")
+        if ref is not None:
+            if unpaired:
+                meta["pairing"] = "not checked (--unpaired): the reference may be another log"
+            else:
+                check_pairing(est, ref, str(reference))
+            if set(MEASURED_REQUIRED) <= set(ref.columns):
+                checked = gate(ref, veh, source=str(reference))
+                meta["input_checks"] = (f"passed, {len(checked.warnings)} warning(s), not run: "
+                                        + (", ".join(n.check for n in checked.not_run) or "none"))
+                for w in checked.warnings:
+                    console.print(f"[yellow]warning:[/yellow] {rich.markup.escape(w.message)}")
+            else:
+                meta["input_checks"] = "not run: the reference has no measured channels"
+        path = write_html_report(est, ref, out, wheel_radius=veh.body.wheel_radius,
+                                 metadata=meta, title=title or f"vestim report: {estimate.name}")
     except (VestimError, ValueError, OSError) as exc:
         raise _fail(exc) from None
     typer.echo(str(path))
@@ -631,13 +687,16 @@ app.add_typer(analyze_app, name="analyze")
 @design_app.command("lpv")
 def design_lpv_cmd(
     out: Annotated[Path, typer.Option("--out", help="Gains file to write (TOML).")],
-    vehicle: VehicleOpt = "hashemi_suv",
+    vehicle: VehicleOpt = "",
 ) -> None:
     """Synthesise wheel-speed-scheduled LPV observer gains (001 eq. (30)–(32), 004 eq. (26)–(35))."""
     from vestim.design import design_lpv
     from vestim.io import load_vehicle
+    from vestim.io.files import check_output_path
 
     try:
+        check_output_path(out, inputs=[vehicle if Path(vehicle).is_file() else None],
+                          suffixes=(".toml",))
         schedule = design_lpv(load_vehicle(vehicle))
         path = schedule.save_gains(out)
     except (VestimError, ValueError, OSError) as exc:
@@ -647,7 +706,7 @@ def design_lpv_cmd(
 
 @design_app.command("check")
 def design_check_cmd(
-    vehicle: VehicleOpt = "hashemi_suv",
+    vehicle: VehicleOpt = "",
     gains: Annotated[Path | None, typer.Option(help="Gains file; default: the papers' constant "
                                                "gains.")] = None,
 ) -> None:
@@ -668,7 +727,7 @@ def design_check_cmd(
 def analyze_observability_cmd(
     log_path: Annotated[Path, typer.Argument(metavar="LOG", help="Drive log.")],
     out: Annotated[Path, typer.Option("--out", help="Output folder (figures and summary).")],
-    vehicle: VehicleOpt = "hashemi_suv",
+    vehicle: VehicleOpt = "",
 ) -> None:
     """Observability rank, Gramians and stochastic observability tests over a log (000 Sec. III)."""
     from vestim.design import analyze_observability
@@ -684,7 +743,7 @@ def analyze_observability_cmd(
 @app.command("demo")
 def demo_cmd(
     out: Annotated[Path, typer.Option("--out", help="Output folder.")] = Path("out/demo"),
-    vehicle: VehicleOpt = "hashemi_suv",
+    vehicle: SimVehicleOpt = "hashemi_suv",
     seed: Annotated[int, typer.Option(help="Sensor-noise seed.")] = 0,
 ) -> None:
     """Simulate the default maneuver set, estimate, score and plot; print the NRMS table."""

@@ -211,14 +211,16 @@ def test_cli_report(tmp_path: Path, offset_estimate: pd.DataFrame, sim_log: pd.D
     est = write_log(offset_estimate, tmp_path / "est.parquet", metadata={"force": "ukf"})
     ref = write_log(sim_log, tmp_path / "sim.parquet")
     runner = CliRunner()
-    res = runner.invoke(app, ["report", str(est), str(ref), "--out", str(tmp_path / "r.html")])
+    res = runner.invoke(app, ["report", "--vehicle", "hashemi_suv",
+                              str(est), str(ref), "--out", str(tmp_path / "r.html")])
     assert res.exit_code == 0, res.output
     assert res.stdout.strip() == str(tmp_path / "r.html")
     text = (tmp_path / "r.html").read_text(encoding="utf-8")
     assert "<td>force</td><td>ukf</td>" in text and "<td>vehicle</td><td>hashemi_suv</td>" in text
     assert "id='score-table'" in text
     monkeypatch.setitem(sys.modules, "plotly.graph_objects", None)
-    res = runner.invoke(app, ["report", str(est), "--out", str(tmp_path / "x.html")])
+    res = runner.invoke(app, ["report", "--vehicle", "hashemi_suv",
+                              str(est), "--out", str(tmp_path / "x.html")])
     assert res.exit_code == 2
     assert "vestim[report]" in res.output and "Traceback" not in res.output
     assert not (tmp_path / "x.html").exists()

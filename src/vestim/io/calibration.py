@@ -125,6 +125,78 @@ class Calibration:
         return v.value if v is not None and v.excited else None
 
 
+def length_unit(value: float, typical: float) -> str:
+    """The wrong unit, cm or mm, whose conversion of ``value`` lands nearest ``typical`` m."""
+    unit, scale = min((("centimetres", 100.0), ("millimetres", 1000.0)),
+                      key=lambda u: abs(math.log(value / u[1] / typical)))
+    return f"{unit} ({value:g} {unit[0]}m = {value / scale:g} m)"
+
+
+MOUNT_MAX = math.radians(30.0)
+"""rad; largest mounting angle a calibration may hold: it is the residual misalignment of an
+IMU (a few degrees); a sensor mounted sideways, upside down or backwards is turned into body
+axes by the channel map's ``[imu] frame`` and ``mounting`` (docs/channel-map.md)."""
+
+RANGES: dict[str, tuple[float, float, str]] = {
+    **{f"radius_{c}": (0.1, 2.0, "an effective rolling radius in metres (a car's is "
+                       "0.25–0.40 m)") for c in ("fl", "fr", "rl", "rr")},
+    "radius_scale": (0.8, 1.25, "the calibrated radii over [vehicle] wheel_radius: a few per "
+                     "cent from 1 (load, pressure, wear)"),
+    "gnss_latency": (0.0, 2.0, "a GNSS receiver's latency in seconds (typically 0.05–0.3 s)"),
+    **{f"bias_{a}": (-2.0, 2.0, "an accelerometer turn-on bias in m/s² (below 0.5 for a "
+                     "MEMS sensor); ±9.81 means gravity was added or removed")
+       for a in ("ax", "ay", "az")},
+    **{f"bias_{r}": (-0.1, 0.1, "a gyro turn-on bias in rad/s (a MEMS gyro's is 0.005–0.01 "
+                     "rad/s); a larger value looks like deg/s: convert with ×π/180")
+       for r in ("yaw_rate", "roll_rate", "pitch_rate")},
+    "accel_scale": (0.8, 1.25, "the accelerometer's |g| reading over g: a few per cent from 1; "
+                    "about 0.1 means the IMU reads g, not m/s² (fix that in the channel map)"),
+    **{f"mount_{a}": (-MOUNT_MAX, MOUNT_MAX, "a residual IMU misalignment in rad (a few "
+                      "degrees); give radians, not degrees, and put a sensor mounted sideways "
+                      "or backwards into body axes with the channel map's [imu] frame and "
+                      "mounting (docs/channel-map.md)") for a in ("roll", "pitch", "yaw")},
+    "steering_ratio": (5.0, 40.0, "a steering-wheel/road-wheel angle ratio (12–20 for a car)"),
+    "steering_offset": (-0.1, 0.1, "a road-wheel angle offset in rad (a few tenths of a "
+                        "degree); a larger value looks like degrees: convert with ×π/180"),
+    "understeer_gradient": (-0.05, 0.05, "rad per m/s² (a car's is 0.001–0.01)"),
+    "roll_gradient": (-0.005, 0.06, "rad of roll per m/s² of a_y (road cars 0.002–0.021); "
+                      "degrees per g would be about 60 times larger"),
+    "pitch_gradient": (-0.01, 0.03, "rad of pitch per m/s² of a_x (road cars 0.001–0.004)"),
+    **{k: (1e3, 2e6, "an axle cornering stiffness in N/rad (a car axle's is 5e4–2e5)")
+       for k in ("cy_f", "cy_r")},
+    **{k: (1e3, 1e7, "an axle longitudinal slip stiffness in N per unit slip")
+       for k in ("cx_f", "cx_r")},
+    **{k: (1.0, 1e5, "a LuGre bristle stiffness in 1/m (hundreds)") for k in ("sigma0_x",
+                                                                          "sigma0_y")},
+    **{k: (0.0, 1e3, "a LuGre damping in s/m") for k in ("sigma1_x", "sigma1_y",
+                                                        "sigma2_x", "sigma2_y")},
+    **{k: (0.0, 1e3, "a LuGre load-distribution factor in 1/m") for k in ("kappa_x",
+                                                                          "kappa_y")},
+    **{k: (0.0, 3.0, "a normalised friction coefficient (≤ 1.3 on a dry road)")
+       for k in ("mu_s", "mu_c")},
+    "v_s": (0.0, 100.0, "a Stribeck velocity in m/s"),
+    "alpha": (0.0, 5.0, "a Stribeck exponent (0.5–2)"),
+}
+"""Plausible range (low, high, what the value is) of every :data:`KEYS` value: each is beyond
+every road car in SI units, and the usual mistakes (mm for m, degrees for rad, deg/s for
+rad/s, g for m/s², a sensor turned by 180°) land outside it."""
+
+
+def _range_error(where: str, key: str, value: float, unit: str) -> VehicleFileError | None:
+    lo, hi, what = RANGES[key]
+    if lo <= value <= hi:
+        return None
+    fix = what
+    if key.startswith("radius_") and value > hi:
+        fix = f"this looks like {length_unit(value, 0.35)}; give it in metres"
+    elif key.startswith("mount_") and abs(value) > math.pi / 2:
+        fix = (f"{math.degrees(value):.0f}° is a sensor turned round, not a misalignment; "
+               "turn it into body axes with the channel map's [imu] frame and mounting "
+               "(docs/channel-map.md) and recalibrate, or give radians, not degrees")
+    return VehicleFileError(f"{where} {key} = {value:g} {unit} is outside the plausible range "
+                            f"[{lo:g}, {hi:g}] {unit}; {fix}")
+
+
 def parse_calibration(table: Any) -> Calibration:
     """Validate a ``[calibration]`` table (parsed TOML); errors name ``[calibration.<g>] key``."""
     if not isinstance(table, dict):
@@ -170,8 +242,13 @@ def parse_calibration(table: Any) -> Calibration:
             if not isinstance(evidence, str):
                 raise VehicleFileError(f"{where} evidence_{key} must be a string")
             try:
+                problem = _range_error(where, key, float(value), unit)
+                if problem is not None:
+                    raise problem
                 values[key] = Identified(float(value), float(sigma), excited, evidence, unit)
-            except ValueError as exc:
+            except (ValueError, OverflowError) as exc:
+                if isinstance(exc, VehicleFileError):
+                    raise
                 raise VehicleFileError(f"{where} {key}: {exc}") from None
         groups[group] = values
     return Calibration(groups, str(table.get("base", "")), tuple(sources),

@@ -304,6 +304,16 @@ def parse_expression(text: str, names: frozenset[str] | set[str]) -> ast.Express
         if type(node) in _BINOPS or type(node) in _UNARY:
             continue  # the operator nodes themselves
         if isinstance(node, ast.Constant) and type(node.value) in (int, float):
+            number = node.value
+            assert isinstance(number, int | float)
+            try:
+                float(number)
+            except OverflowError:  # an integer literal of more than 308 digits
+                digits = len(str(abs(number)))
+                raise ChannelMapError(
+                    f"expression {text[:60]!r}{'…' if len(text) > 60 else ''}: a number of "
+                    f"{digits} digits is beyond the float range (±1.8e308); write it with an "
+                    "exponent (e.g. 1e-3) or check the constant") from None
             continue
         if isinstance(node, ast.Name):
             if node.id in names:
@@ -685,7 +695,10 @@ def _parse_channel(name: str, spec: Any) -> ChannelSpec:
             sources[k] = _string(a, f"{where} sources.{k}")
     expr = t.get("expr")
     if expr is not None:
-        parse_expression(_string(expr, f"{where} expr"), set(sources))
+        try:
+            parse_expression(_string(expr, f"{where} expr"), set(sources))
+        except ChannelMapError as exc:
+            raise ChannelMapError(f"{where} expr: {exc}") from None
     elif len(sources) > 1:
         raise ChannelMapError(f"{where}: several sources need an expr that combines them")
     unit: str | None = None
@@ -909,10 +922,31 @@ def _channel_values(spec: ChannelSpec, unit: str, streams: Mapping[str, Stream],
     if spec.resample == "sparse":
         ((key, s),) = streams.items()
         v = s.value if spec.expr is None else evaluate_expression(spec.expr, {key: s.value})
+        if spec.expr is not None:
+            _check_overflow(spec, {key: s.value}, np.broadcast_to(v, s.value.shape))
         return resample(Stream(s.t, convert(v)), grid, "sparse", rate)
     on_grid = {k: resample(s, grid, spec.resample, rate) for k, s in streams.items()}
     v = on_grid["src"] if spec.expr is None else evaluate_expression(spec.expr, on_grid)
+    if spec.expr is not None:
+        _check_overflow(spec, on_grid, np.broadcast_to(v, grid.shape))
     return convert(np.broadcast_to(v, grid.shape).copy())
+
+
+def _check_overflow(spec: ChannelSpec, inputs: Mapping[str, np.ndarray], v: np.ndarray) -> None:
+    """A non-finite result of an expression from finite sources is the expression's fault
+    (a constant such as 10**400, an overflowing power, a division by zero): name the entry."""
+    fin = np.ones(v.shape, dtype=bool)
+    for x in inputs.values():
+        fin &= np.isfinite(np.broadcast_to(x, v.shape))
+    bad = np.flatnonzero(fin & ~np.isfinite(v))
+    if bad.size:
+        i = int(bad[0])
+        args = ", ".join(f"{k} = {float(np.broadcast_to(x, v.shape)[i]):.6g}"
+                         for k, x in inputs.items())
+        raise ChannelMapError(
+            f"[channels.{spec.name}] expr {spec.expr!r} gives {float(v[i])} at sample {i} "
+            f"from finite sources ({args}) on {bad.size} of {v.size} samples: an overflow "
+            "beyond ±1.8e308 or a division by zero; check its constants and operators")
 
 
 def _find_gaps(cmap: ChannelMap, per_channel: Mapping[str, Mapping[str, Stream]],

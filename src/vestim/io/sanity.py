@@ -34,15 +34,23 @@ see :data:`SPREAD_BASE`), as a median of per-bin ratios or a robust least-square
 Each threshold below sits between the range a clean log reaches and the value the mistake
 gives, with the margin stated. Strong evidence gives an error (all errors of a log are raised
 together in one :class:`~vestim.errors.LogFormatError`); evidence that is suggestive but not
-conclusive gives a warning; a relation that is not excited in the log is skipped silently.
+conclusive gives a warning; a relation that is not excited in the log (or whose channels the log lacks)
+cannot be evaluated: :func:`gate` lists it, with the reason, in :attr:`GateReport.not_run`,
+which every entry point writes into the output metadata (``checks_not_run``).
 The table of mistakes and the exact messages is ``docs/input-checks.md``.
+
+:func:`gate` is the one input gate of every entry point (``vestim estimate``, ``batch``,
+``calibrate``, ``report`` and :func:`vestim.estimate`); :func:`validate_sample` is its
+per-sample form for :meth:`vestim.pipeline.Pipeline.step`.
 """
 
 from __future__ import annotations
 
+import json
 import math
+from collections.abc import Mapping
 from dataclasses import dataclass
-from typing import Literal
+from typing import Any, Literal
 
 import numpy as np
 import pandas as pd
@@ -50,10 +58,23 @@ import pandas as pd
 from vestim.constants import CORNERS, G
 from vestim.errors import LogFormatError
 from vestim.io import channels as ch
-from vestim.io.log import road_wheel_angles, validate_log
+from vestim.io.log import (
+    ACCEL_MAX,
+    OMEGA_MAX,
+    RATE_MAX,
+    ROAD_WHEEL_ANGLE_MAX,
+    STEERING_WHEEL_ANGLE_MAX,
+    road_wheel_angles,
+    validate_log,
+)
 from vestim.io.vehicle import Vehicle
 
-__all__ = ["Finding", "check_log", "find_problems"]
+__all__ = ["SAMPLE_RANGES", "Finding", "GateReport", "NotRun", "check_log", "find_problems",
+           "gate", "validate_sample"]
+
+GATE_ROWS = 720_000
+"""The checks of :func:`gate` run on the first this many rows (1 h at 200 Hz; a whole log
+below that): they need the rows in memory, the estimate of a long log does not."""
 
 Severity = Literal["error", "warning"]
 OMEGAS = ", ".join(ch.WHEEL_SPEEDS)
@@ -200,8 +221,53 @@ class Finding:
                 "check": self.check}
 
 
-def check_log(df: pd.DataFrame, vehicle: Vehicle, *, source: str = "log") -> list[Finding]:
-    """Run :func:`validate_log` and the cross-channel checks; raise on errors.
+@dataclass(frozen=True)
+class NotRun:
+    """A cross-channel check that could not be evaluated on a log.
+
+    Attributes:
+        check: the relation (the names of :attr:`Finding.check`).
+        reason: why: ``"not excited: …"`` (the log has too little turning, acceleration,
+            speed …, with the threshold) or ``"no … channel"``.
+    """
+
+    check: str
+    reason: str
+
+    def as_dict(self) -> dict[str, str]:
+        """Plain dict for JSON metadata."""
+        return {"check": self.check, "reason": self.reason}
+
+
+@dataclass(frozen=True)
+class GateReport:
+    """What :func:`gate` found in a log that passed it.
+
+    Attributes:
+        warnings: the findings of weak evidence (the errors were raised).
+        not_run: the checks that could not be evaluated, each with its reason.
+    """
+
+    warnings: tuple[Finding, ...]
+    not_run: tuple[NotRun, ...]
+
+    @property
+    def not_excited(self) -> tuple[str, ...]:
+        """The checks that could not run for lack of excitation (their channels present)."""
+        return tuple(n.check for n in self.not_run if n.reason.startswith("not excited"))
+
+    def metadata(self, extra_warnings: list[dict[str, Any]] | None = None) -> dict[str, str]:
+        """Output metadata (JSON strings): ``warnings`` (the findings, then ``extra_warnings``,
+        e.g. the pipeline's consistency monitor) and ``checks_not_run`` (check and reason)."""
+        warn = [w.as_dict() for w in self.warnings] + list(extra_warnings or [])
+        return {"warnings": json.dumps(warn, ensure_ascii=False),
+                "checks_not_run": json.dumps([n.as_dict() for n in self.not_run],
+                                             ensure_ascii=False)}
+
+
+def gate(df: pd.DataFrame, vehicle: Vehicle, *, source: str = "log") -> GateReport:
+    """The input gate of every entry point: :func:`validate_log` and the cross-channel checks
+    on the first :data:`GATE_ROWS` rows; raise on errors.
 
     Args:
         df: a measured log (spec channels, SI units); it is not modified.
@@ -210,22 +276,28 @@ def check_log(df: pd.DataFrame, vehicle: Vehicle, *, source: str = "log") -> lis
         source: prefix of the messages (the file name).
 
     Returns:
-        The warnings (weak evidence), possibly empty.
+        The warnings (weak evidence) and the checks that could not run, with the reason.
 
     Raises:
         LogFormatError: one message listing every error found (strong evidence), each
             naming the channel, the likely cause and the fix.
     """
-    validate_log(df, require=["measured"], wheel_radius=vehicle.body.wheel_radius,
+    head = df if len(df) <= GATE_ROWS else df.iloc[:GATE_ROWS]
+    validate_log(head, require=["measured"], wheel_radius=vehicle.body.wheel_radius,
                  source=source)
-    findings = find_problems(df, vehicle)
+    findings, not_run = _run_checks(head, vehicle)
     errors = [f for f in findings if f.severity == "error"]
     if errors:
         if len(errors) == 1:
             raise LogFormatError(f"{source}: {errors[0].message}")
         listing = "; ".join(f"({i}) {f.message}" for i, f in enumerate(errors, 1))
         raise LogFormatError(f"{source}: {len(errors)} problems: {listing}")
-    return [f for f in findings if f.severity == "warning"]
+    return GateReport(tuple(f for f in findings if f.severity == "warning"), tuple(not_run))
+
+
+def check_log(df: pd.DataFrame, vehicle: Vehicle, *, source: str = "log") -> list[Finding]:
+    """:func:`gate`'s warnings (it raises :class:`~vestim.errors.LogFormatError` on errors)."""
+    return list(gate(df, vehicle, source=source).warnings)
 
 
 def find_problems(df: pd.DataFrame, vehicle: Vehicle) -> list[Finding]:
@@ -234,26 +306,148 @@ def find_problems(df: pd.DataFrame, vehicle: Vehicle) -> list[Finding]:
     Raises nothing for a log that passes ``validate_log(require=["measured"])``; torques, az,
     roll_rate, gnss_speed and vehicle_speed are used when present, ax when present.
     """
+    return _run_checks(df, vehicle)[0]
+
+
+_NO_EXCITATION = {
+    "wheels": f"not excited: fewer than {MIN_BINS} half-second bins at ≥ {V_MIN_YAW:g} m/s",
+    "longitudinal": (f"not excited: fewer than {MIN_BINS} one-second windows with a speed "
+                     f"change ≥ {LON_MIN_STEP:g} m/s and a well-determined slope"),
+    "lateral": (f"not excited: fewer than {MIN_BINS} half-second bins of turning with "
+                f"v ≥ {V_MIN:g} m/s, |v·r| ≥ {AY_MIN:g} m/s² and no wheel slip"),
+    "yaw_wheels": (f"not excited: fewer than {MIN_BINS} half-second bins with "
+                   f"|yaw_rate| ≥ {YAW_MIN:g} rad/s at v ≥ {V_MIN_YAW:g} m/s and "
+                   f"|v·r| ≤ {AY_MAX_YAW:g} m/s²"),
+    "steering": (f"not excited: fewer than {MIN_BINS} half-second bins with "
+                 f"|v·δ/L| ≥ {STEER_MIN:g} rad/s at v ≥ {V_MIN:g} m/s"),
+    "roll": (f"not excited: fewer than {MIN_BINS} windows with |Δay| ≥ {ROLL_MIN_STEP:g} "
+             "m/s² and a determined roll gradient"),
+    "torque": (f"not excited: fewer than {MIN_BINS} one-second windows with a speed change "
+               f"≥ {TORQUE_MIN_STEP:g} m/s"),
+}
+"""The reason :class:`NotRun` gives for a check whose channels are there but not excited."""
+
+
+def _run_checks(df: pd.DataFrame, vehicle: Vehicle) -> tuple[list[Finding], list[NotRun]]:
+    """The findings in check order, and the checks that could not be evaluated."""
     s = _Signals(df, vehicle)
     out: list[Finding] = []
     out += _gravity(s)
-    out += _wheels_each_other(s)
+    wheels_ran = _wheels_each_other(s, out)
     lon = _longitudinal(s, out)
     lat = _ratio_check(s.lat_x, s.ay, s.lat_sel)
     yaw = _ratio_check(s.r, s.yaw_y, s.yaw_sel)
     steer = _ratio_check(s.steer_x, s.r, s.steer_sel)
+    roll: _Roll | None = None
     if _yaw_scale(s, lat, yaw, out):  # yaw_rate in deg/s: every relation with r is off by 57
-        _torque(s, out)
-        return out
-    n_before = len(out)
-    ay_in_g = _lateral_scale(s, lat, lon, out)
-    speed_kmh = any(f.check == "speed" for f in out[n_before:])
-    roll = _roll(s, ay_in_g, out)
-    _signs(s, lat, yaw, steer, roll, out)
-    if not speed_kmh:  # a speed in km/h also makes δ look 3.6 times too large
-        _steering_scale(s, steer, out)
-    _torque(s, out)
-    _wheel_scale(s, lat, yaw, roll, ay_in_g, lon, out)
+        torque_ran = _torque(s, out)
+    else:
+        n_before = len(out)
+        ay_in_g = _lateral_scale(s, lat, lon, out)
+        speed_kmh = any(f.check == "speed" for f in out[n_before:])
+        roll = _roll(s, ay_in_g, out)
+        _signs(s, lat, yaw, steer, roll, out)
+        if not speed_kmh:  # a speed in km/h also makes δ look 3.6 times too large
+            _steering_scale(s, steer, out)
+        torque_ran = _torque(s, out)
+        _wheel_scale(s, lat, yaw, roll, ay_in_g, lon, out)
+    cols = set(df.columns)
+    missing = {
+        "gravity": None if "az" in cols else "no az channel",
+        "wheels": None if s.has_wheels else "no wheel-speed channels",
+        "longitudinal": None if "ax" in cols else "no ax channel",
+        "yaw_wheels": None if s.has_wheels else "no wheel-speed channels",
+        "roll": None if "roll_rate" in cols else "no roll_rate channel",
+        "torque": None if set(ch.TORQUES) <= cols else "no wheel-torque channels",
+    }
+    ran = {"gravity": "az" in cols, "wheels": wheels_ran, "longitudinal": lon is not None,
+           "lateral": lat is not None, "yaw_wheels": yaw is not None,
+           "steering": steer is not None, "roll": roll is not None, "torque": torque_ran}
+    not_run = [NotRun(check, missing.get(check) or _NO_EXCITATION[check])
+               for check, done in ran.items() if not done]
+    return out, not_run
+
+
+# --- one sample (Pipeline.step) ---------------------------------------------------------------
+
+TORQUE_MAX = 50_000.0
+"""N·m; |net wheel torque| of one wheel: a car's reaches 2–5 kN·m (brake or drive), a 40 t
+truck's some 20 kN·m; a torque in N·mm, or an overflowing CAN signal, lands beyond."""
+SPEED_MAX = 150.0
+"""m/s (540 km/h); |gnss_speed| and |vehicle_speed| of a road vehicle are below it."""
+
+SAMPLE_RANGES: dict[str, tuple[float, float, str]] = {
+    **{c: (-OMEGA_MAX, OMEGA_MAX, "rad/s") for c in ch.WHEEL_SPEEDS},
+    **{c: (-TORQUE_MAX, TORQUE_MAX, "N·m") for c in ch.TORQUES},
+    **{c: (-ACCEL_MAX, ACCEL_MAX, "m/s²") for c in ("ax", "ay", "az")},
+    **{c: (-RATE_MAX, RATE_MAX, "rad/s") for c in ("yaw_rate", "roll_rate", "pitch_rate")},
+    **{c: (-ROAD_WHEEL_ANGLE_MAX, ROAD_WHEEL_ANGLE_MAX, "rad")
+       for c in (*ch.ROAD_WHEEL_ANGLES, ch.DELTA)},
+    ch.STEERING_WHEEL_ANGLE: (-STEERING_WHEEL_ANGLE_MAX, STEERING_WHEEL_ANGLE_MAX, "rad"),
+    **{c: (-SPEED_MAX, SPEED_MAX, "m/s") for c in ch.SPEED_SOURCES},
+}
+"""Physical range (low, high, unit) of each measured channel of one sample: the whole-log
+limits of :func:`~vestim.io.log.validate_log` (ω 400 rad/s, δ π/2 rad, steering wheel 4π
+rad, rates 5 rad/s, accelerations 60 m/s²), which lie beyond any road car in SI units, plus
+:data:`TORQUE_MAX` and :data:`SPEED_MAX`. ``az`` reads about +9.81 and is within ±60 too."""
+
+
+class Sample(dict[str, float]):
+    """A sample after :func:`validate_sample`: channel → float (NaN where a value was
+    rejected); :attr:`rejected` says, per rejected channel, what its value was."""
+
+    rejected: dict[str, str]
+
+
+def validate_sample(sample: Mapping[str, Any]) -> Sample:
+    """One sample of a live feed checked for type, finiteness and physical range.
+
+    Every measured channel (:data:`SAMPLE_RANGES`) becomes a float. A value that is not a
+    real number (``None``, a string, a list, a bool) or lies outside its channel's range is
+    replaced by NaN, as a dropped value: :meth:`vestim.pipeline.Pipeline.step` then holds the
+    channel's last good value (at most ``HOLD_S``) and flags the row "input held", or raises
+    :class:`~vestim.errors.LogFormatError` naming the channel. NaN and inf stay as they are
+    (the same hold); a NaN ``gnss_speed`` is "no fix". Channels vestim does not read
+    (``ref_*``, unknown names) are left out.
+
+    Args:
+        sample: channel name → value (SI units, the log format's names).
+
+    Returns:
+        The cleaned sample; its ``rejected`` maps each replaced channel to its value and the
+        reason (for the error message).
+
+    Raises:
+        LogFormatError: ``t`` is missing or not a real number.
+    """
+    out = Sample()
+    out.rejected = {}
+    for key, value in sample.items():
+        rng = SAMPLE_RANGES.get(key)
+        if rng is None:
+            if key == ch.T:
+                try:
+                    if isinstance(value, bool) or not isinstance(value, int | float | np.number):
+                        raise TypeError
+                    out[key] = float(value)
+                except (OverflowError, TypeError, ValueError):
+                    raise LogFormatError(f"sample t = {str(value)[:40]!r}: t must be a real "
+                                         "number, in seconds") from None
+            continue
+        if isinstance(value, bool) or not isinstance(value, int | float | np.number):
+            out[key] = math.nan
+            out.rejected[key] = f"{value!r} (not a number)"
+            continue
+        try:
+            v = float(value)
+        except (OverflowError, TypeError, ValueError):  # a huge int, a complex number
+            v = math.inf
+        lo, hi, unit = rng
+        if lo <= v <= hi or v != v:  # in range, or NaN (a dropped value; no fix)
+            out[key] = v
+        else:
+            out[key] = math.nan
+            out.rejected[key] = f"{value!r} {unit}, outside [{lo:.4g}, {hi:.4g}] {unit}"
     return out
 
 
@@ -429,11 +623,11 @@ def _gravity(s: _Signals) -> list[Finding]:
                   "gravity")]
 
 
-def _wheels_each_other(s: _Signals) -> list[Finding]:
+def _wheels_each_other(s: _Signals, out: list[Finding]) -> bool:
+    """Each wheel speed against the other three; returns whether the check was evaluated."""
     sel = s.good & (s.v >= V_MIN_YAW)
     if not s.has_wheels or int(np.count_nonzero(sel)) < MIN_BINS:
-        return []
-    out = []
+        return False
     w4 = np.column_stack([s.omega[c] for c in CORNERS])[sel]
     for i, c in enumerate(CORNERS):
         others = np.median(np.delete(w4, i, axis=1), axis=1)
@@ -449,7 +643,7 @@ def _wheels_each_other(s: _Signals) -> list[Finding]:
                 f"omega_{c}", f"column 'omega_{c}' is a constant {factor:.3g} × the other wheel "
                 "speeds: it is in another unit (rpm gives 9.55, m/s gives 1/R) or scaled "
                 "differently; convert it to rad/s like the others", factor, "wheels"))
-    return out
+    return True
 
 
 def _longitudinal(s: _Signals, out: list[Finding]) -> float | None:
@@ -697,15 +891,16 @@ def _steering_scale(s: _Signals, steer: _Ratio | None, out: list[Finding]) -> No
                        f"and scale{note}", v, "steering"))
 
 
-def _torque(s: _Signals, out: list[Finding]) -> None:
+def _torque(s: _Signals, out: list[Finding]) -> bool:
+    """The wheel torques' signs; returns whether the check was evaluated."""
     if not set(ch.TORQUES) <= set(s.df.columns):
-        return
+        return False
     k0, k1 = s.window_pairs()
     dt = s.tb[k1] - s.tb[k0]
     dw = s.v[k1] - s.v[k0]
     sel = np.abs(dw) >= TORQUE_MIN_STEP
     if int(np.count_nonzero(sel)) < MIN_BINS:
-        return
+        return False
     m = s.vehicle.body.mass
     x = (m * s.R * dw / dt)[sel]   # N·m the car's acceleration needs at the wheels
     mean_t = {}
@@ -721,7 +916,7 @@ def _torque(s: _Signals, out: list[Finding]) -> None:
                         "torque_rr "
                         "(spec: net wheel torque, drive minus brake, positive driving)", total,
                         "torque"))
-        return
+        return True
     for c in CORNERS:
         k, se_c = _robust_fit(x, mean_t[c])
         if math.isfinite(k) and k < 0 and k / se_c <= -T_STAT:
@@ -729,6 +924,7 @@ def _torque(s: _Signals, out: list[Finding]) -> None:
                             f"{k:.2f} × m·R·a (each wheel's share is ≥ 0) while the sum of "
                             "the torques agrees with the car's acceleration; negate it", k,
                             "torque"))
+    return True
 
 
 def _wheel_scale(s: _Signals, lat: _Ratio | None, yaw: _Ratio | None, roll: _Roll | None,

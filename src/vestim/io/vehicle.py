@@ -13,9 +13,11 @@ four further optional tables, each with documented defaults:
 and ``vestim calibrate`` adds ``[calibration.*]`` tables of identified values
 (:mod:`vestim.io.calibration`).
 
-Any other table, an unknown key, a missing required key, a wrong type or a
-non-physical value raises :class:`~vestim.errors.VehicleFileError` that names
-``[table] key`` and says what is expected. All values are SI.
+Any other table, an unknown key, a missing required key, a wrong type, a
+non-physical value or one outside its plausible range (a field's ``range``
+metadata, :data:`vestim.io.calibration.RANGES` for ``[calibration.*]``) raises
+:class:`~vestim.errors.VehicleFileError` that names ``[table] key`` and says what
+is expected. All values are SI.
 """
 
 from __future__ import annotations
@@ -29,7 +31,7 @@ from typing import Any, Literal, TypeVar
 
 from vestim.constants import G
 from vestim.errors import VehicleFileError
-from vestim.io.calibration import Calibration, parse_calibration
+from vestim.io.calibration import Calibration, length_unit, parse_calibration
 
 Drivetrain = Literal["awd", "fwd", "rwd"]
 DRIVETRAINS: tuple[str, ...] = ("awd", "fwd", "rwd")
@@ -40,12 +42,17 @@ _NONNEG = {"check": "nonnegative"}
 _FRAC = {"check": "fraction"}
 
 
-def _pos(doc: str = "") -> Any:
-    return field(metadata={**_POS, "doc": doc})
+Range = tuple[float, float, str]
+"""A plausible range (low, high, the likely mistake and fix) of a value: beyond every road
+vehicle in SI units, while the usual wrong unit (per cent, km/h, g/cm³) lands outside it."""
 
 
-def _nonneg(doc: str = "") -> Any:
-    return field(metadata={**_NONNEG, "doc": doc})
+def _pos(doc: str = "", rng: Range | None = None) -> Any:
+    return field(metadata={**_POS, "doc": doc, "range": rng})
+
+
+def _nonneg(doc: str = "", rng: Range | None = None) -> Any:
+    return field(metadata={**_NONNEG, "doc": doc, "range": rng})
 
 
 def _frac(doc: str = "") -> Any:
@@ -71,7 +78,9 @@ class VehicleBody:
     cg_height: float = _pos("m")
     roll_center_height: float = _nonneg("m")
     wheel_radius: float = _pos("m, effective rolling radius")
-    steering_ratio: float = _pos("steering-wheel angle / road-wheel angle")
+    steering_ratio: float = _pos("steering-wheel angle / road-wheel angle",
+                                 (1.0, 40.0, "a car's is 12–20 (1 when the steering column "
+                                  "holds road-wheel angles)"))
     drivetrain: str = field(default="awd", metadata={"check": "drivetrain"})
 
     @property
@@ -101,27 +110,20 @@ MASS_RANGE = (50.0, 100_000.0)
 1650 kg car reads 1.65 in tonnes and 1 650 000 in grams."""
 
 
-def _length_unit(value: float, typical: float) -> str:
-    """The wrong unit, cm or mm, whose conversion of ``value`` lands nearest ``typical`` m."""
-    unit, scale = min((("centimetres", 100.0), ("millimetres", 1000.0)),
-                      key=lambda u: abs(math.log(value / u[1] / typical)))
-    return f"{unit} ({value:g} {unit[0]}m = {value / scale:g} m)"
-
-
 def _check_magnitudes(body: VehicleBody) -> None:
     """Wrong-unit magnitudes of ``[vehicle]`` (a radius in mm, a mass in g or t)."""
     r = body.wheel_radius
     if r > RADIUS_MAX:
         raise VehicleFileError(
             f"[vehicle] wheel_radius = {r:g} m is beyond {RADIUS_MAX:g} m (no road tyre is that "
-            f"large): this looks like {_length_unit(r, 0.35)}; give it in metres"
+            f"large): this looks like {length_unit(r, 0.35)}; give it in metres"
         )
     for name in ("lf", "lr", "track_f", "track_r", "cg_height", "roll_center_height"):
         v = getattr(body, name)
         if v > LENGTH_MAX:
             raise VehicleFileError(
                 f"[vehicle] {name} = {v:g} m is beyond {LENGTH_MAX:g} m: this looks like "
-                f"{_length_unit(v, 1.0)}; give it in metres"
+                f"{length_unit(v, 1.0)}; give it in metres"
             )
     lo, hi = MASS_RANGE
     if body.mass < lo:
@@ -136,6 +138,10 @@ def _check_magnitudes(body: VehicleBody) -> None:
         )
 
 
+_MU_RANGE: Range = (0.0, 3.0, "a normalised friction coefficient (up to 1.3 on a dry road); "
+                   "a value like 120 is per cent: divide by 100")
+
+
 @dataclass(frozen=True)
 class LuGreTire:
     """``[tire]``: average lumped LuGre parameters (004 eq. (6)–(7), 001 Sec. V)."""
@@ -148,10 +154,11 @@ class LuGreTire:
     sigma1_y: float = _nonneg("s/m")
     sigma2_y: float = _nonneg("s/m")
     kappa_y: float = _pos("1/m")
-    mu_s: float = _pos("static friction (normalised)")
-    mu_c: float = _pos("Coulomb friction (normalised)")
-    v_s: float = _pos("m/s, Stribeck velocity")
-    alpha: float = _pos("Stribeck exponent")
+    mu_s: float = _pos("static friction (normalised)", _MU_RANGE)
+    mu_c: float = _pos("Coulomb friction (normalised)", _MU_RANGE)
+    v_s: float = _pos("m/s, Stribeck velocity", (0.0, 100.0, "a Stribeck velocity in m/s "
+                                                  "(1–10); km/h would be 3.6 × larger"))
+    alpha: float = _pos("Stribeck exponent", (0.0, 10.0, "a Stribeck exponent (0.5–2)"))
 
     def _check(self) -> None:
         if self.mu_c > self.mu_s:
@@ -195,9 +202,13 @@ class Suspension:
 class Aerodynamics:
     """``[aerodynamics]``: drag and rolling resistance (defaults: 0.9 m², 1.2 kg/m³, 0.012)."""
 
-    drag_area: float = _nonneg("m^2, drag coefficient times frontal area")
-    air_density: float = _pos("kg/m^3")
-    rolling_resistance: float = _nonneg("rolling-resistance coefficient (moment = f R Fz)")
+    drag_area: float = _nonneg("m^2, drag coefficient times frontal area",
+                               (0.0, 20.0, "Cd·A in m² (0.5–1.2 for a car; Cd alone is "
+                                "0.25–0.4)"))
+    air_density: float = _pos("kg/m^3", (0.5, 2.0, "air density in kg/m³ (1.2 at sea level)"))
+    rolling_resistance: float = _nonneg("rolling-resistance coefficient (moment = f R Fz)",
+                                        (0.0, 0.1, "a rolling-resistance coefficient "
+                                         "(0.008–0.02); 1.2 looks like per cent"))
 
 
 @dataclass(frozen=True)
@@ -217,7 +228,9 @@ class Powertrain:
     front_drive_share: float = _frac("AWD only: share of drive torque at the front axle")
     max_brake_torque: float = _pos("N m, all wheels together")
     brake_front_share: float = _frac("share of brake torque at the front axle")
-    max_speed: float = _pos("m/s of wheel periphery at which drive torque has faded to zero")
+    max_speed: float = _pos("m/s of wheel periphery at which drive torque has faded to zero",
+                            (0.0, 150.0, "a speed in m/s (150 m/s = 540 km/h); km/h would "
+                             "be 3.6 × larger"))
 
 
 @dataclass(frozen=True)
@@ -339,6 +352,12 @@ def _parse(cls: type[_T], table: str, data: Any, defaults: dict[str, float] | No
             raise VehicleFileError(
                 f"[{table}] {name} = {value} {problem} ({f.metadata.get('doc', '')})"
             )
+        rng = f.metadata.get("range")
+        if rng is not None and not rng[0] <= value <= rng[1]:
+            raise VehicleFileError(
+                f"[{table}] {name} = {value:g} is outside the plausible range [{rng[0]:g}, "
+                f"{rng[1]:g}] ({f.metadata.get('doc', '')}); {rng[2]}"
+            )
         values[name] = value
     obj = cls(**values)
     check_fn = getattr(obj, "_check", None)
@@ -438,8 +457,29 @@ def vehicle_from_dict(data: dict[str, Any], name: str = "vehicle") -> Vehicle:
                    if "stiffness" in data else None),
         name=name,
         given=frozenset(t for t in _TABLES if t in data and t not in ("vehicle", "tire")),
-        calibration=parse_calibration(data["calibration"]) if "calibration" in data else None,
+        calibration=_calibration(data["calibration"], body) if "calibration" in data else None,
     )
+
+
+RADIUS_RATIO = (0.8, 1.25)
+"""A calibrated wheel radius over ``[vehicle] wheel_radius``: load, pressure and wear move a
+tyre's effective radius by a few per cent; 20 % off is another tyre or another unit."""
+
+
+def _calibration(table: Any, body: VehicleBody) -> Calibration:
+    """``[calibration]`` (its own ranges, :data:`vestim.io.calibration.RANGES`), and the
+    calibrated radii against ``[vehicle] wheel_radius``."""
+    cal = parse_calibration(table)
+    lo, hi = RADIUS_RATIO
+    for c in ("fl", "fr", "rl", "rr"):
+        r = cal.get("wheels", f"radius_{c}")
+        if r is not None and not lo <= r.value / body.wheel_radius <= hi:
+            raise VehicleFileError(
+                f"[calibration.wheels] radius_{c} = {r.value:g} m is "
+                f"{r.value / body.wheel_radius:.3g} × [vehicle] wheel_radius = "
+                f"{body.wheel_radius:g} m, outside the plausible {lo:g}–{hi:g}: check both "
+                "values (or recalibrate from logs of this car)")
+    return cal
 
 
 BUILTIN_VEHICLES: tuple[str, ...] = ("hashemi_suv", "compact_car")

@@ -102,6 +102,7 @@ from vestim.estimators.velocity.reference import (
 from vestim.io.calibration import correct_columns, corrected_log
 from vestim.io.channels import REF_PREFIX, SPARSE
 from vestim.io.log import check_structure
+from vestim.io.sanity import validate_sample
 from vestim.io.vehicle import Vehicle
 from vestim.models import kinematics as kin
 from vestim.pipeline import rows as rows_kernel
@@ -655,7 +656,8 @@ class Pipeline:
             if not math.isfinite(last) or t - t_good > HOLD_S:
                 since = ("the first sample" if not good else f"t = {t_good:.3f} s")
                 raise LogFormatError(
-                    f"sample at t = {t:.3f} s: channel {key!r} is {v} and has had no finite value "
+                    f"sample at t = {t:.3f} s: channel {key!r} is "
+                    f"{getattr(sample, 'rejected', {}).get(key, v)} and has had no finite value "
                     f"since {since} (values are held for at most {HOLD_S} s); check the sensor "
                     "or leave the channel out")
             fixed = dict(sample) if fixed is None else fixed
@@ -793,8 +795,12 @@ class Pipeline:
         value must not make every later row NaN); longer, or a non-finite or non-increasing
         ``t``, raises
         :class:`~vestim.errors.LogFormatError` naming the channel. ``gnss_speed`` is sparse:
-        NaN means "no fix".
+        NaN means "no fix". A value of the wrong type (``None``, a string, a list) or outside
+        its channel's physical range (:func:`vestim.io.sanity.validate_sample`) is such a
+        dropped value too. This is the gate of a live feed; :func:`estimate` is the gated
+        form of :meth:`run` (the whole-log checks, :func:`vestim.io.sanity.gate`).
         """
+        sample = validate_sample(sample)
         t_new = float(sample.get("t", np.nan))
         if math.isfinite(self._t_prev_step) and t_new - self._t_prev_step > GAP_S:
             gap = (self._t_prev_step, t_new)
@@ -929,7 +935,8 @@ def estimate(
     vehicle: Vehicle | str | Path,
     config: PipelineConfig | None = None,
 ) -> pd.DataFrame:
-    """Estimate forces and velocities for a whole log: the library form of ``vestim estimate``.
+    """Estimate forces and velocities for a whole log: the library form of ``vestim estimate``,
+    behind the same input gate (:func:`vestim.io.sanity.gate`).
 
     Args:
         log: a drive log (spec columns and SI units, ``../spec/log-format.md``) or the path of
@@ -939,11 +946,25 @@ def estimate(
 
     Returns:
         One row per input sample: ``t`` and the estimate channels listed in this module's
-        docstring (SI units).
+        docstring (SI units). Its ``attrs`` hold the metadata ``vestim estimate`` writes
+        about the input: ``warnings`` (JSON list of the gate's and the consistency monitor's
+        warnings) and ``checks_not_run`` (JSON list of the checks that could not run, with
+        the reason), plus the force stage's input sources.
+
+    Raises:
+        LogFormatError: the log fails the input gate (e.g. a yaw rate with the wrong sign);
+            the message names the channel and the fix.
     """
     from vestim.io import load_vehicle, read_log
+    from vestim.io.sanity import gate
 
     veh = vehicle if isinstance(vehicle, Vehicle) else load_vehicle(vehicle)
     df = log if isinstance(log, pd.DataFrame) else read_log(
         log, require=["measured"], wheel_radius=veh.body.wheel_radius)
-    return Pipeline(veh, config).run(df)
+    checked = gate(df, veh, source="log" if isinstance(log, pd.DataFrame) else str(log))
+    pipe = Pipeline(veh, config)
+    est = pipe.run(df)
+    unverified = pipe.unverified_warning()
+    est.attrs.update({**pipe.force.input_sources,
+                      **checked.metadata([unverified] if unverified else [])})
+    return est

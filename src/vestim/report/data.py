@@ -5,6 +5,8 @@ the min/max envelope that keeps long logs small to draw.
 
 from __future__ import annotations
 
+import os
+from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -15,7 +17,7 @@ from vestim.errors import LogFormatError
 from vestim.io import channels as ch
 from vestim.metrics import channel_family, score
 
-__all__ = ["MAX_POINTS", "Logs", "band", "envelope", "peak_points"]
+__all__ = ["MAX_POINTS", "Logs", "band", "check_pairing", "envelope", "peak_points"]
 
 MAX_POINTS = 2000
 """Most points drawn per line; a longer series is drawn as its min/max envelope (1000
@@ -24,6 +26,48 @@ buckets, about one per pixel column of a figure 1100 px wide)."""
 _DERIVED_REF = {"mu_x": "fx", "mu_y": "fy"}
 """μ_x = F_x/F_z and μ_y = F_y/F_z have no ``ref_`` column in the spec; their reference is
 the ratio of the reference forces (as :func:`vestim.metrics.score` pairs them)."""
+
+
+def check_pairing(estimate: pd.DataFrame, reference: pd.DataFrame, reference_path: str) -> None:
+    """Refuse a reference that does not belong to the estimate (issue 30: a report that pairs
+    an estimate with another drive's reference showed 92.6 % NRMS without a word).
+
+    Two tests: the estimate's metadata ``source`` (written by ``vestim estimate`` and
+    ``vestim batch``) must name the reference file (the same file, or one of the same name,
+    so a moved folder still pairs); and the two logs must span the same time, first and last
+    ``t`` within one sample interval of the reference (an estimate has one row per sample of
+    its log).
+
+    Args:
+        estimate: the log of estimates (``attrs`` from its Parquet metadata).
+        reference: the reference log.
+        reference_path: the reference's path, as given.
+
+    Raises:
+        LogFormatError: naming the estimate's own log or the two time spans.
+    """
+    source = str(estimate.attrs.get("source", ""))
+    if source:
+        src, ref = Path(source), Path(reference_path)
+        same = src.name == ref.name or (src.exists() and ref.exists() and os.path.samefile(src, ref))
+        if not same:
+            raise LogFormatError(
+                f"the estimate was made from {source} (its metadata 'source'), but the reference "
+                f"is {reference_path}: scores against another drive's reference are meaningless; "
+                f"pass {source} as REFERENCE (or --unpaired to compare them anyway)")
+    if ch.T not in estimate.columns or ch.T not in reference.columns:
+        return  # Logs names the missing column
+    te = estimate[ch.T].to_numpy(dtype=np.float64)
+    tr = reference[ch.T].to_numpy(dtype=np.float64)
+    if te.size == 0 or tr.size == 0:
+        return
+    tol = (float(np.median(np.diff(tr))) if tr.size > 1 else 0.0) + 1e-6
+    if abs(te[0] - tr[0]) > tol or abs(te[-1] - tr[-1]) > tol:
+        raise LogFormatError(
+            f"the estimate spans t = {te[0]:.3f}–{te[-1]:.3f} s ({te.size} rows) but the "
+            f"reference {reference_path} spans {tr[0]:.3f}–{tr[-1]:.3f} s ({tr.size} rows): it "
+            "is not the log the estimate was made from; pass that log as REFERENCE (or "
+            "--unpaired to compare the overlap anyway)")
 
 
 def envelope(t: np.ndarray, y: np.ndarray, max_points: int = MAX_POINTS) -> tuple[np.ndarray, np.ndarray]:

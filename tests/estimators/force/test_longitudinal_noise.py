@@ -40,8 +40,8 @@ def synthetic(sigma_w: float, sigma_t: float, n: int = 2000, chops: bool = False
 def run(t, omega, torque, **kw):
     est = lon.LongitudinalEstimator(SUV, "ukf", lon.UKFParams(**kw))
     fx, _ = est.advance(t, omega, torque)
-    sigma_w = np.exp(est._x[:, lon.X_LW]) / lon._D2_MEDIAN
-    sigma_t = np.exp(est._x[:, lon.X_LT]) / lon._D2_MEDIAN
+    sigma_w = np.exp(est.state.x[:, lon.X_LW]) / lon._D2_MEDIAN
+    sigma_t = np.exp(est.state.x[:, lon.X_LT]) / lon._D2_MEDIAN
     return fx, sigma_w, sigma_t
 
 

@@ -29,6 +29,7 @@ from pathlib import Path
 
 import pandas as pd
 
+from vestim.errors import LogFormatError
 from vestim.io.calibration import (
     KEYS,
     LUGRE_KEYS,
@@ -40,6 +41,7 @@ from vestim.io.calibration import (
 )
 from vestim.io.files import atomic_path, write_text_atomic
 from vestim.io.log import read_log
+from vestim.io.sanity import GateReport, gate
 from vestim.io.vehicle import Vehicle, load_vehicle
 
 __all__ = ["CalibrationResult", "Identified", "calibrate", "write_calibrated", "write_report"]
@@ -50,13 +52,20 @@ TIRE_KEYS = tuple(k for k in LUGRE_KEYS if k not in ("mu_s", "mu_c", "v_s"))
 road the logs were driven on; they are reported in ``[calibration.tire]`` only."""
 
 
+MIN_LOG_S = 2.0
+"""s; shortest log :func:`calibrate` takes: its wheel-slip mask and fits work on 1 s windows,
+and a log of twice that holds one window clear of both ends."""
+
+
 @dataclass(frozen=True)
 class CalibrationResult:
-    """What :func:`calibrate` found, and how long each step took (s)."""
+    """What :func:`calibrate` found, how long each step took (s), and the input gate's
+    report on each log (:func:`vestim.io.sanity.gate`: warnings, checks not run)."""
 
     calibration: Calibration
     vehicle: Vehicle
     timings: dict[str, float]
+    checks: tuple[GateReport, ...] = ()
 
     @property
     def values(self) -> dict[str, Identified]:
@@ -86,6 +95,11 @@ def calibrate(
 
     Returns:
         The calibration and the base vehicle with it attached.
+
+    Raises:
+        LogFormatError: a log shorter than :data:`MIN_LOG_S`, or one the input gate
+            (:func:`vestim.io.sanity.gate`, as ``vestim estimate`` runs it) refuses: the
+            message names the log, the channel and the fix.
     """
     from vestim.design.calibrate import body_tire, sensors
 
@@ -94,6 +108,15 @@ def calibrate(
         names = [Path(x).name if not isinstance(x, pd.DataFrame) else f"log{i}"
                  for i, x in enumerate(logs)]
     raw = [_measured(x) for x in logs]
+    for df, name in zip(raw, names, strict=True):
+        t = df["t"].to_numpy(dtype=float)
+        span = float(t[-1] - t[0]) if len(t) else 0.0
+        if span < MIN_LOG_S:
+            raise LogFormatError(
+                f"{name}: the log spans {span:.3g} s ({len(t)} samples); calibration needs at "
+                f"least {MIN_LOG_S:g} s per log (its fits use 1 s windows), and minutes of "
+                "driving to excite most values: give a longer log or leave this one out")
+    checks = tuple(gate(df, base, source=name) for df, name in zip(raw, names, strict=True))
     found: dict[str, Identified] = {}
     timings: dict[str, float] = {}
     steps: list[tuple[str, Callable[[Sequence[pd.DataFrame], Vehicle], dict[str, Identified]]]] = [
@@ -115,7 +138,7 @@ def calibrate(
     if progress is not None:
         progress("done", 1.0)
     cal = _calibration(found, base, names)
-    return CalibrationResult(cal, replace(base, calibration=cal), timings)
+    return CalibrationResult(cal, replace(base, calibration=cal), timings, checks)
 
 
 def _calibration(found: dict[str, Identified], base: Vehicle, names: Sequence[str]) -> Calibration:
