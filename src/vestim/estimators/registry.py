@@ -53,6 +53,8 @@ class Method:
         corner: for a velocity method, the corner observer it runs
             (:class:`~vestim.estimators.velocity.corner.CornerVelocityEstimator`'s method), or
             None.
+        code: its integer code, the order of registration within the stage: what the
+            compiled pipeline (:mod:`vestim.pipeline.rows`) dispatches on.
     """
 
     stage: str
@@ -63,6 +65,7 @@ class Method:
     needs_wheel_speeds: bool = True
     default: bool = False
     corner: str | None = None
+    code: int = 0
 
 
 _REGISTRY: dict[str, dict[str, Method]] = {stage: {} for stage in STAGES}
@@ -87,7 +90,7 @@ def register(stage: str, name: str, summary: str, *, cite: str = "",
         raise ValueError(f"{stage} has two default methods ({name!r} and "
                          f"{next(m.name for m in entries.values() if m.default)!r})")
     entries[name] = Method(stage, name, summary, cite, tuple(tables), needs_wheel_speeds,
-                           default, corner)
+                           default, corner, len(entries))
 
     def decorate(obj: T) -> T:
         return obj

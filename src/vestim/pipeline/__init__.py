@@ -472,10 +472,24 @@ class Pipeline:
             "outputs_unavailable": ("none" if u.omega_measured
                                     else ",".join(WHEEL_ONLY_OUTPUTS))})
 
-    @property
-    def _force_sigma(self) -> bool:
-        """Whether the longitudinal force method gives a σ (the UKFs)."""
-        return self.config.force in ("ukf", "ukf_rw")
+    def _columns(self, wheels: bool) -> tuple[str, ...]:
+        """The output columns of this configuration for a log with or without wheel speeds
+        (:func:`~vestim.pipeline.rows.output_columns`).
+
+        Raises:
+            PipelineConfigError: the velocity method needs wheel speeds and there are none.
+        """
+        cfg = self.config
+        velocity = registry.lookup("velocity", cfg.velocity)
+        if not wheels and velocity.needs_wheel_speeds:
+            raise PipelineConfigError(
+                f"velocity method {cfg.velocity!r} needs the wheel speeds omega_fl … omega_rr, "
+                "which the log does not have: use velocity 'reference' or 'fused' (the default)")
+        corners = velocity.corner is not None and wheels
+        filtered = cfg.velocity in ("fused", "reference")
+        return rows_kernel.output_columns(
+            wheels, cfg.force in ("ukf", "ukf_rw"), filtered, cfg.velocity != "kinematic",
+            corners and cfg.fusion == "opinion")
 
     def _compiled_rows(self, u: Inputs) -> bool:
         """Whether :func:`~vestim.pipeline.rows.pipeline_rows` covers this configuration and
@@ -771,7 +785,7 @@ class Pipeline:
                         if progress is not None and total:
                             progress(min((done + stop) / total, 1.0))
 
-                    columns = rows_kernel.output_columns(u.omega_measured, self._force_sigma)
+                    columns = self._columns(u.omega_measured)
                     frame = self._run_rows(u, faulty, health, imu_health, spans, restarts,
                                            tuple(names) or columns, on_span)
                 else:
@@ -887,7 +901,7 @@ class Pipeline:
             _ONES[:3] if self._chunk_imu is None else self._imu_buf[3][0])
         present = ("ax" in sample, "az" in sample, torques, wheels, "vehicle_speed" in sample,
                    "roll_rate" in sample, "pitch_rate" in sample)
-        columns = rows_kernel.output_columns(wheels, self._force_sigma)
+        columns = self._columns(wheels)
         self._trees(columns, _SENSORS[present[:5]])
         self._call_rows(self._x1, self._y1, 0, 1)
         if present != self._step_rates:

@@ -28,6 +28,7 @@ from typing import TYPE_CHECKING, Any, NamedTuple
 import numpy as np
 from numba import njit
 
+from vestim.estimators import registry
 from vestim.estimators.force.estimator import (
     AX_TAU,
     AX_TAU_SPARSE,
@@ -51,6 +52,7 @@ from vestim.estimators.force.normal import (
 )
 from vestim.estimators.friction import FrictionKernelParams, FrictionState, friction_step
 from vestim.estimators.fusion.axle import adaptive_axle_kernel, fixed_axle_kernel
+from vestim.estimators.fusion.opinion import opinion_kernel
 from vestim.estimators.uncertainty import N_OUT as N_SIGMA
 from vestim.estimators.uncertainty import OUTPUT_NAMES as SIGMA_NAMES
 from vestim.estimators.uncertainty import (
@@ -60,6 +62,8 @@ from vestim.estimators.uncertainty import (
 )
 from vestim.estimators.validity import GROUPS as VALIDITY_GROUPS
 from vestim.estimators.validity import ValidityKernelParams, validity_step
+from vestim.estimators.velocity.kinematic import kinematic_kernel
+from vestim.estimators.velocity.lpv_observer import lpv_kernel
 from vestim.estimators.velocity.lugre_kf import KFParams, lugre_kf_kernel
 from vestim.estimators.velocity.reference import (
     RadiusKernelParams,
@@ -119,7 +123,7 @@ ROW_NAMES: tuple[str, ...] = (
     *(n for c in CORNER_KEYS for n in (f"mu_{c}", f"sigma_mu_{c}", f"mu_{c}_excited")),
     *(n for g in VALIDITY_GROUPS for n in (f"valid_{g}", f"reason_{g}")),
     *(f"health_omega_{c}" for c in CORNER_KEYS), "health_ax", "health_ay", "health_yaw_rate",
-    *SIGMA_NAMES)
+    *SIGMA_NAMES, *(f"confidence_{c}" for c in CORNER_KEYS))
 """Every quantity one row computes, in the order the kernel writes them."""
 
 
@@ -133,7 +137,7 @@ OUTPUT_COLUMNS: tuple[str, ...] = (
               "sigma_slip_ratio", "sigma_fz"), "sigma_roll", "sigma_pitch",
     *_corners("vx", "vy", "vxt", "vyt", "slip_ratio", "slip_angle", "fx", "fy", "fz", "mu_x",
               "mu_y", "sigma_fx", "sigma_fy"), "roll", "pitch",
-    "bias_ax", "cornering_stiffness", "radius_scale", "gnss_latency",
+    "bias_ax", "cornering_stiffness", "radius_scale", "gnss_latency", *_corners("confidence"),
     *_corners("mu", "sigma_mu"), *(f"mu_{c}_excited" for c in CORNER_KEYS),
     *(n for g in VALIDITY_GROUPS for n in (f"valid_{g}", f"reason_{g}")),
     *_corners("health_omega"), "health_ax", "health_ay", "health_yaw_rate")
@@ -148,18 +152,25 @@ _VELOCITY_SIGMA = ("sigma_vx", "sigma_vy", "sigma_vxt_", "sigma_vyt_", "sigma_sl
 
 
 @functools.cache
-def output_columns(wheels: bool, force_sigma: bool) -> tuple[str, ...]:
+def output_columns(wheels: bool, force_sigma: bool, velocity_sigma: bool, bias: bool,
+                   confidence: bool) -> tuple[str, ...]:
     """The output columns of a log with or without wheel speeds (no per-wheel F_x, slip ratio,
     radius scale, GNSS latency nor wheel health without them), for a longitudinal force
-    method with or without a σ (made once: the same tuple for the same arguments)."""
+    method with or without a σ, a velocity method with or without a filter σ (the velocity
+    σ columns) and an accelerometer bias (``bias_ax``), and a fusion with or without
+    confidences (opinion dynamics). Made once: the same tuple for the same arguments."""
     return tuple(c for c in OUTPUT_COLUMNS
                  if (wheels or not c.startswith(_WHEEL_ONLY))
-                 and (force_sigma or not c.startswith("sigma_fx_")))
+                 and (force_sigma or not c.startswith("sigma_fx_"))
+                 and (velocity_sigma or not c.startswith(_VELOCITY_SIGMA))
+                 and (bias or c != "bias_ax")
+                 and (confidence or not c.startswith("confidence_")))
 _R_MU = 3 + 4 * len(_PER_CORNER) + 6
 _N_GROUPS = len(VALIDITY_GROUPS)
 _R_HEALTH = _R_MU + 12 + 2 * _N_GROUPS
 _R_SIGMA = _R_HEALTH + 7
-N_ROW = _R_SIGMA + N_SIGMA
+_R_CONF = _R_SIGMA + N_SIGMA
+N_ROW = _R_CONF + 4
 
 
 class Sensors(NamedTuple):
@@ -214,9 +225,13 @@ class ForceState(NamedTuple):
 
 
 class CornerParams(NamedTuple):
-    """The LuGre corner KF's parameters (:func:`~vestim.estimators.velocity.lugre_kf.
-    lugre_kf_kernel`'s): the tire's κ, σ0, σ1, σ2, the noise, the high-slip detector's."""
+    """The corner observer's parameters: ``lpv`` (the LPV observer,
+    :func:`~vestim.estimators.velocity.lpv_observer.lpv_kernel`) or the LuGre KF/UKF
+    (:func:`~vestim.estimators.velocity.lugre_kf.lugre_kf_kernel`); the tire's κ, σ0, σ1, σ2
+    (x and y), the KF's noise, the LPV's gains, the high-slip detector's."""
 
+    lpv: bool
+    xw: np.ndarray  # corner positions ahead of the CG, m
     kappa: float
     sigma0: float
     sigma1: float
@@ -238,14 +253,27 @@ class CornerParams(NamedTuple):
     wm: np.ndarray
     wc: np.ndarray
     tau: float
+    kappa_y: float
+    sigma0_y: float
+    sigma1_y: float
+    sigma2_y: float
+    gx_w: np.ndarray  # the LPV's gain schedules (ω grid, L1, L2), longitudinal and lateral
+    gx_1: np.ndarray
+    gx_2: np.ndarray
+    lateral: bool
+    gy_w: np.ndarray
+    gy_1: np.ndarray
+    gy_2: np.ndarray
 
 
 class CornerState(NamedTuple):
-    """The corner KF's states (shared with :class:`~vestim.estimators.velocity.corner.
-    CornerVelocityEstimator`)."""
+    """The corner observer's states (shared with :class:`~vestim.estimators.velocity.corner.
+    CornerVelocityEstimator`): the KF's ``x``, ``P``, the LPV's ``xx``, ``xy``."""
 
     x: np.ndarray
     P: np.ndarray
+    xx: np.ndarray
+    xy: np.ndarray
     hold: np.ndarray
     acc: np.ndarray
     stats: np.ndarray
@@ -256,8 +284,10 @@ class CornerState(NamedTuple):
 
 class VelocityParams(NamedTuple):
     """The velocity stage's parameters: the online cornering stiffness, the reference filter,
-    the method (``fused``: the fused filter takes the corner observer's CG v_x while ≥ 3
-    corners slip), the corner observer and the axle fusion (``adaptive``, else fixed)."""
+    the method (its registry code: ``fused``, the fused filter takes the corner observer's
+    CG v_x while ≥ 3 corners slip; ``reference``; ``kinematic``; the corner observers ``kf``,
+    ``ukf``, ``lpv`` fused to the CG), the corner observer and the fusion (its code: fixed or
+    adaptive axle weights, or opinion dynamics with ``k1`` … ``gamma``)."""
 
     stiffness: StiffnessKernelParams
     radius: RadiusKernelParams
@@ -265,14 +295,19 @@ class VelocityParams(NamedTuple):
     sigma_gnss: float  # a fix's σ, m/s
     sigma_vehicle_speed: float  # vehicle_speed's σ (logs without wheel speeds), m/s
     tau_wheel: float  # the filter's inflation time of an extra speed measurement, s
-    fused: bool
+    method: int
     corner: CornerParams
-    adaptive: bool
+    fusion: int
     eta_front: float
     w_s: float
     w_range: float
     rho: float
     threshold: float
+    k1: float
+    k2: float
+    w_floor: float
+    band: float
+    gamma: float
 
 
 class VelocityState(NamedTuple):
@@ -287,6 +322,7 @@ class VelocityState(NamedTuple):
     fused: ReferenceState
     prev: np.ndarray
     corner: CornerState
+    kinematic: np.ndarray  # the kinematic integrator's state
 
 
 class PostParams(NamedTuple):
@@ -324,6 +360,13 @@ class State(NamedTuple):
     velocity: VelocityState
     post: PostState
 
+
+FUSED, REFERENCE, KINEMATIC = (registry.lookup("velocity", n).code
+                                for n in ("fused", "reference", "kinematic"))
+FIXED, ADAPTIVE, OPINION = (registry.lookup("fusion", n).code
+                            for n in ("axle", "adaptive", "opinion"))
+"""The methods' registry codes that :func:`pipeline_rows` dispatches on (``kf``, ``ukf`` and
+``lpv`` are the other velocity codes: a corner observer fused to the CG)."""
 
 BLOCK = 1024
 """Samples per stage pass of :func:`pipeline_rows`: each stage runs over a block before the
@@ -492,22 +535,40 @@ def _block(P: Params, S: State, x: np.ndarray, Y: np.ndarray, k0: int) -> None:
     sig_ref = np.empty((m, 2))
     bias_ref = np.empty((m, 4))
     trust = np.empty((m, 4))
-    prev = vs.prev
-    same = vp.fused and prev[2] == 1.0
-    if same:
-        # While it is the plain filter the fused filter's state is not used: it holds the
-        # plain filter's state before this block, the start of its first own step.
-        copy_reference_state(vs.fused, vs.reference)
-    n_extra = 1 if sensors.omega else 2
-    _reference_rows(vp.reference, vs.reference, 0, m, t, omega_v, torque, mu_x, axle, fxa,
-                    fya, fy_sd, r, delta, extra[:, :n_extra], extra_var[:, :n_extra], v_ref,
-                    sig_ref, bias_ref, trust)
-    v = v_ref
-    sig = sig_ref
-    bias = bias_ref
-    if vp.fused and sensors.omega:  # without wheel speeds "fused" is the reference filter
-        v, sig, bias = _fused(P, S, t, omega_v, torque, delta, r, fxa, fya, fy_sd, mu_x, axle,
-                              extra, extra_var, v_ref, sig_ref, bias_ref, same)
+    method = vp.method
+    conf = np.full((m, 4), np.nan)  # the opinion fusion's confidences
+    if method == KINEMATIC:
+        v = np.empty((m, 2))
+        kinematic_kernel(t, omega_v, fxa, fya, r, radius, vs.kinematic, v)
+        sig = np.full((m, 2), np.nan)
+        bias = np.full((m, 4), np.nan)
+    else:
+        prev = vs.prev
+        same = method == FUSED and prev[2] == 1.0
+        if same:
+            # While it is the plain filter the fused filter's state is not used: it holds the
+            # plain filter's state before this block, the start of its first own step.
+            copy_reference_state(vs.fused, vs.reference)
+        n_extra = 1 if sensors.omega else 2
+        _reference_rows(vp.reference, vs.reference, 0, m, t, omega_v, torque, mu_x, axle, fxa,
+                        fya, fy_sd, r, delta, extra[:, :n_extra], extra_var[:, :n_extra],
+                        v_ref, sig_ref, bias_ref, trust)
+        v = v_ref
+        sig = sig_ref
+        bias = bias_ref
+        if method != REFERENCE and sensors.omega:  # without them "fused" is the reference
+            vx_f, n_high = _corners_vx(P, S, t, omega_v, delta, r, fxa, fya, mu_x,
+                                       normalised(fy, fz), v_ref, bias_ref, conf)
+            if method == FUSED:
+                v, sig, bias = _fused(P, S, t, omega_v, torque, delta, r, fxa, fya, fy_sd,
+                                      mu_x, axle, extra, extra_var, v_ref, sig_ref, bias_ref,
+                                      same, vx_f, n_high)
+            else:  # a corner observer: CG v_x by the fusion, v_y from the reference filter
+                v = np.empty((m, 2))
+                for i in range(m):
+                    v[i, 0] = vx_f[i]
+                    v[i, 1] = v_ref[i, 1]
+                sig = np.full((m, 2), np.nan)
     # --- the corners' kinematics ---
     vx_o, vy_o = transport_kernel(v[:, 0].copy(), v[:, 1].copy(), r, xw, yw, 1.0)
     vxt = np.empty((m, 4))
@@ -535,6 +596,7 @@ def _block(P: Params, S: State, x: np.ndarray, Y: np.ndarray, k0: int) -> None:
     _put(Y, col, j + 3, c_y, k0)
     _put(Y, col, j + 4, scale, k0)
     _put(Y, col, j + 5, latency, k0)
+    _put4(Y, col, _R_CONF, conf, k0)
     _post(P.post, S.post, x, t, ax, v, sig, c_y, bias[:, 3].copy(), fx, fy, fz, sig_fx, sig_fy,
           sr, sa, vxt, vyt, delta, omega_v, Y, col, k0)
 
@@ -563,16 +625,20 @@ def _chassis_torques(fp: ForceParams, fs: ForceState, t: np.ndarray, omega: np.n
 
 
 @njit(**_JIT)
-def _fused(P: Params, S: State, t: np.ndarray, omega: np.ndarray, torque: np.ndarray,
-           delta: np.ndarray, r: np.ndarray, fxa: np.ndarray, fya: np.ndarray,
-           fy_sd: np.ndarray, mu_x: np.ndarray, axle: np.ndarray, extra: np.ndarray,
-           extra_var: np.ndarray, v_ref: np.ndarray, sig_ref: np.ndarray, bias_ref: np.ndarray,
-           same: bool) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """The fused filter of a block (Pipeline._advance's "fused"): the corner KF, its axle
-    fusion against the reference speed, and the second reference filter that takes the
-    fused corner v_x (into ``extra[:, 1]``, ``extra_var[:, 1]``; column 0 holds the GNSS
-    fixes) while ≥ 3 corners are in high slip. Returns its (v, σ, bias), the reference
-    filter's while the fused one has not yet diverged from it."""
+def _corners_vx(P: Params, S: State, t: np.ndarray, omega: np.ndarray, delta: np.ndarray,
+                r: np.ndarray, fxa: np.ndarray, fya: np.ndarray, mu_x: np.ndarray,
+                mu_y: np.ndarray, v_ref: np.ndarray, bias_ref: np.ndarray,
+                conf: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The corner observers of a block (001 text after eq. (21); Pipeline._corners) and their
+    fusion to the CG (003 Alg. 2, 001 eq. (33)–(35); Pipeline._fuse_corners). Returns the
+    fused CG v_x (m,), m/s, and the number of corners in high slip (m,); ``conf`` (m, 4)
+    gets the opinion fusion's confidences.
+
+    The reference filter's v_y sets the tire-frame transport term, and its accelerometer
+    biases b_x, b_y are removed from the accelerations the observers integrate. The slip that
+    sets the fusion weights is taken against the reference filter's velocity mapped to each
+    corner, not against the corner's own v̂_xt (a corner observer that has drifted towards
+    R·ω would report a small slip and keep its weight)."""
     vp = P.velocity
     vs = S.velocity
     cp = vp.corner
@@ -603,19 +669,31 @@ def _fused(P: Params, S: State, t: np.ndarray, omega: np.ndarray, torque: np.nda
                   vxt_g.reshape(-1), vyt_in.reshape(-1))
     hint = np.zeros((m, 4), dtype=np.bool_)
     k_vxt = np.empty((m, 4))
-    k_sig = np.empty((m, 4))
+    k_vyt = np.zeros((m, 4))  # the KFs have no lateral state
     k_high = np.empty((m, 4), dtype=np.bool_)
     k_vr = np.empty((m, 4))
     k_z = np.empty((m, 4))
     k_zd = np.empty((m, 4))
-    lugre_kf_kernel(t, omega, mu_x, a_xt, a_yt, delta, r, hint, vyt_in, radius,
-                    cp.kappa, cp.sigma0, cp.sigma1, cp.sigma2, xw, cp.q, cp.r, cp.q_high,
-                    cp.r_high, cp.p0, cp.step_ref, cp.lam_u, cp.lam_l, cp.beta_e,
-                    cp.wdot_th, cp.min_speed, cp.mu_release, cp.release_window,
-                    cp.use_ukf, cp.wm, cp.wc, cp.tau, cs.x, cs.P, cs.hold, cs.acc,
-                    cs.stats, cs.w_buf, cs.t_buf, cs.ring, k_vxt, k_sig, k_high, k_vr,
-                    k_z, k_zd)
-    # Fusion (Pipeline._fuse_corners): slip against the reference speed.
+    if cp.lpv:
+        lpv_kernel(t, omega, mu_x, mu_y, a_xt, a_yt, delta, r, hint, vyt_in, radius, cp.kappa,
+                   cp.sigma0, cp.sigma1, cp.sigma2, cp.kappa_y, cp.sigma0_y, cp.sigma1_y,
+                   cp.sigma2_y, cp.xw, cp.gx_w, cp.gx_1, cp.gx_2, cp.lateral, cp.gy_w, cp.gy_1,
+                   cp.gy_2, cp.lam_u, cp.lam_l, cp.beta_e, cp.wdot_th, cp.min_speed,
+                   cp.mu_release, cp.release_window, cs.xx, cs.xy, cs.hold, cs.acc, cs.stats,
+                   cs.w_buf, cs.t_buf, cs.ring, k_vxt, k_vyt, k_high, k_vr, k_z, k_zd,
+                   np.empty((m, 4)))
+        for i in range(m):
+            for c in range(4):
+                if np.isnan(k_vyt[i, c]):
+                    k_vyt[i, c] = 0.0
+    else:
+        lugre_kf_kernel(t, omega, mu_x, a_xt, a_yt, delta, r, hint, vyt_in, radius,
+                        cp.kappa, cp.sigma0, cp.sigma1, cp.sigma2, cp.xw, cp.q, cp.r,
+                        cp.q_high, cp.r_high, cp.p0, cp.step_ref, cp.lam_u, cp.lam_l,
+                        cp.beta_e, cp.wdot_th, cp.min_speed, cp.mu_release, cp.release_window,
+                        cp.use_ukf, cp.wm, cp.wc, cp.tau, cs.x, cs.P, cs.hold, cs.acc,
+                        cs.stats, cs.w_buf, cs.t_buf, cs.ring, k_vxt, np.empty((m, 4)),
+                        k_high, k_vr, k_z, k_zd)
     vxr_i, vyr_i = transport_kernel(v_ref[:, 0].copy(), vyr, r, xw, yw, 1.0)
     vxt_r = np.empty((m, 4))
     vyt_r = np.empty((m, 4))
@@ -625,7 +703,7 @@ def _fused(P: Params, S: State, t: np.ndarray, omega: np.ndarray, torque: np.nda
     slip_ratio_kernel(omega.reshape(-1), vxt_r.reshape(-1), radius, 0.1, slip.reshape(-1))
     vx_b = np.empty((m, 4))
     vy_b = np.empty((m, 4))
-    rotate_kernel(k_vxt.reshape(-1), np.zeros(4 * m), delta.reshape(-1), -1.0,
+    rotate_kernel(k_vxt.reshape(-1), k_vyt.reshape(-1), delta.reshape(-1), -1.0,
                   vx_b.reshape(-1), vy_b.reshape(-1))
     phi = np.empty((m, 4))
     for i in range(m):
@@ -633,18 +711,40 @@ def _fused(P: Params, S: State, t: np.ndarray, omega: np.ndarray, torque: np.nda
             phi[i, c] = vx_b[i, c] + r[i] * yw[c]
     vx_f = np.empty(m)
     fw = np.empty((m, 4))
-    if vp.adaptive:
+    if vp.fusion == ADAPTIVE:
         adaptive_axle_kernel(phi, slip, vp.w_s, vp.w_range, vp.rho, vp.threshold, vx_f, fw)
+    elif vp.fusion == OPINION:
+        opinion_kernel(phi, slip, vp.k1, vp.k2, vp.w_floor, vp.band, vp.gamma, vx_f, fw, conf)
     else:
         fixed_axle_kernel(phi, vp.eta_front, vx_f, fw)
+    n_high = np.zeros(m, dtype=np.int64)
+    for i in range(m):
+        for c in range(4):
+            n_high[i] += 1 if k_high[i, c] else 0
+    return vx_f, n_high
+
+
+@njit(**_JIT)
+def _fused(P: Params, S: State, t: np.ndarray, omega: np.ndarray, torque: np.ndarray,
+           delta: np.ndarray, r: np.ndarray, fxa: np.ndarray, fya: np.ndarray,
+           fy_sd: np.ndarray, mu_x: np.ndarray, axle: np.ndarray, extra: np.ndarray,
+           extra_var: np.ndarray, v_ref: np.ndarray, sig_ref: np.ndarray, bias_ref: np.ndarray,
+           same: bool, vx_f: np.ndarray,
+           n_high: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The fused filter of a block (Pipeline._advance's "fused"): the second reference filter
+    that takes the corner observers' fused CG v_x ``vx_f`` (into ``extra[:, 1]``,
+    ``extra_var[:, 1]``; column 0 holds the GNSS fixes) while ≥ 3 corners are in high slip
+    (``n_high``). Returns its (v, σ, bias), the reference filter's while the fused one has
+    not yet diverged from it."""
+    vp = P.velocity
+    vs = S.velocity
+    m = t.shape[0]
     any_slip = False
     for i in range(m):
-        n_high = 0
-        for c in range(4):
-            n_high += 1 if k_high[i, c] else 0
-        any_slip = any_slip or n_high >= 3
-        extra[i, 1] = vx_f[i] if n_high >= 3 else np.nan
-        extra_var[i, 1] = vp.reference.sigma_corner_slip ** 2 if n_high >= 3 else np.nan
+        slipping = n_high[i] >= 3
+        any_slip = any_slip or slipping
+        extra[i, 1] = vx_f[i] if slipping else np.nan
+        extra_var[i, 1] = vp.reference.sigma_corner_slip ** 2 if slipping else np.nan
     if same and not any_slip:
         return v_ref, sig_ref, bias_ref
     vs.prev[2] = 0.0
@@ -678,7 +778,8 @@ def _post(p: PostParams, st: PostState, x: np.ndarray, t: np.ndarray, ax: np.nda
     for i in range(m):
         k = k0 + i
         vx = v[i, 0]
-        s_a = max(sig[i, 1], p.friction.sigma_vy_floor) / max(abs(vx), 1.0)
+        floor = p.friction.sigma_vy_floor  # a method without a filter σ (NaN) gets the floor
+        s_a = (sig[i, 1] if sig[i, 1] > floor else floor) / max(abs(vx), 1.0)
         s_a = s_a if np.isfinite(s_a) else 0.0
         friction_step(p.friction, st.friction, t[i], fx[i], fy[i], fz[i], sig_fx[i], sig_fy[i],
                       sr[i], sa[i], s_a, c_y[i], mu, smu, ex)
@@ -709,13 +810,45 @@ def _post(p: PostParams, st: PostState, x: np.ndarray, t: np.ndarray, ax: np.nda
                 Y[col[_R_SIGMA + c], k] = sigma[c]
 
 
+def _corner_trees(pipe: Pipeline) -> tuple[CornerParams, CornerState]:
+    """The corner observer's parameter and state trees (typed placeholders, never read,
+    where the velocity method runs none)."""
+    corner = pipe.corner
+    z1, z2 = np.zeros(1), np.zeros((1, 1))
+    if corner is None:
+        return (CornerParams(False, z1, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0,
+                             0.0, 0.0, z1, z1, z1, 0, False, z1, z1, 0.0, 0.0, 0.0, 0.0, 0.0,
+                             z1, z1, z1, False, z1, z1, z1),
+                CornerState(z2, np.zeros((1, 1, 1)), z2, z2, z2, z1, z1, z2, z1,
+                            np.zeros(1, dtype=np.int64)))
+    tire = pipe.vehicle.tire
+    kp = corner.params
+    hs = corner._slip
+    if isinstance(kp, KFParams):
+        kf = (kp.r, kp.r_high, kp.step_ref)
+        kf_arrays = (np.array(kp.q), np.array(kp.q_high), np.array(kp.p0))
+        gx = gy = (z1, z1, z1)
+        lateral = False
+    else:
+        kf, kf_arrays = (0.0, 0.0, 0.0), (z1, z1, z1)
+        gx, gy = corner._gx, corner._gy
+        lateral = kp.lateral is not None
+    params = CornerParams(
+        not isinstance(kp, KFParams), corner._xw, tire.kappa_x, tire.sigma0_x, tire.sigma1_x,
+        tire.sigma2_x, *kf, hs.lambda_upper, hs.lambda_lower, hs.beta_e,
+        hs.omega_dot_threshold, hs.min_speed, hs.mu_release, *kf_arrays,
+        int(hs.release_window), corner.method == "lugre_ukf", corner._wm, corner._wc,
+        float(corner._tau), tire.kappa_y, tire.sigma0_y, tire.sigma1_y, tire.sigma2_y, *gx,
+        lateral, *gy)
+    state = CornerState(corner._x, corner._P, corner._xx, corner._xy, corner._hold,
+                        corner._acc_buf, corner._stats, corner._w_buf, corner._t_buf,
+                        corner._ring)
+    return params, state
+
+
 def covers(pipe: Pipeline) -> bool:
-    """Whether :func:`pipeline_rows` composes ``pipe``'s configuration (see the module)."""
-    cfg = pipe.config
-    return (cfg.velocity in ("fused", "reference")
-            and cfg.fusion in ("axle", "adaptive")
-            and (cfg.velocity != "fused" or isinstance(getattr(pipe.corner, "params", None),
-                                                       KFParams)))
+    """Whether :func:`pipeline_rows` composes ``pipe``'s configuration: every registered one."""
+    return pipe is not None
 
 
 def columns(names: tuple[str, ...]) -> np.ndarray:
@@ -744,27 +877,7 @@ def build(pipe: Pipeline, names: tuple[str, ...], sensors: Sensors) -> tuple[Par
     inertia = fe._lon_inertia  # the same method and parameters as lon, its own state
     force_s = ForceState(fe._att, lon.state, fe._lat_x, fe._lat_P, fe._lat_state,
                          fe._ax_state, inertia.state, fe._hold_state)
-    fused = cfg.velocity == "fused"
-    corner = pipe.corner
-    if fused:
-        assert corner is not None and isinstance(corner.params, KFParams)
-        tire = veh.tire
-        kp = corner.params
-        hs = corner._slip
-        corner_p = CornerParams(
-            tire.kappa_x, tire.sigma0_x, tire.sigma1_x, tire.sigma2_x, kp.r, kp.r_high,
-            kp.step_ref, hs.lambda_upper, hs.lambda_lower, hs.beta_e, hs.omega_dot_threshold,
-            hs.min_speed, hs.mu_release, np.array(kp.q), np.array(kp.q_high), np.array(kp.p0),
-            int(hs.release_window), corner.method == "lugre_ukf", corner._wm, corner._wc,
-            float(corner._tau))
-        corner_s = CornerState(corner._x, corner._P, corner._hold, corner._acc_buf,
-                               corner._stats, corner._w_buf, corner._t_buf, corner._ring)
-    else:  # never read: typed placeholders
-        z1, z2 = np.zeros(1), np.zeros((1, 1))
-        corner_p = CornerParams(0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0,
-                                z1, z1, z1, 0, False, z1, z1, 0.0)
-        corner_s = CornerState(z2, np.zeros((1, 1, 1)), z2, z1, z1, z2, z1,
-                               np.zeros(1, dtype=np.int64))
+    corner_p, corner_s = _corner_trees(pipe)
     fp = cfg.fusion_params
     ap = fp.adaptive
     ref = pipe.reference
@@ -772,13 +885,14 @@ def build(pipe: Pipeline, names: tuple[str, ...], sensors: Sensors) -> tuple[Par
     velocity_p = VelocityParams(
         pipe._stiff_prm, pipe._radius_prm,
         ref.kernel_params if sensors.ax else ref.kernel_params_speed,
-        float(p_ref.sigma_gnss), float(p_ref.sigma_vehicle_speed), float(p_ref.tau_wheel), fused,
-        corner_p,
-        cfg.fusion == "adaptive", float(fp.eta_front), float(ap.w_s), float(ap.w_range),
-        float(ap.rho), float(ap.threshold))
+        float(p_ref.sigma_gnss), float(p_ref.sigma_vehicle_speed), float(p_ref.tau_wheel),
+        registry.lookup("velocity", cfg.velocity).code, corner_p,
+        registry.lookup("fusion", cfg.fusion).code, float(fp.eta_front), float(ap.w_s),
+        float(ap.w_range), float(ap.rho), float(ap.threshold), float(fp.k1), float(fp.k2),
+        float(fp.w_floor), float(fp.band), float(fp.gamma))
     prev = np.array([pipe._prev[0], pipe._prev[1], 1.0 if pipe._fused_is_reference else 0.0])
     velocity_s = VelocityState(pipe._stiff_state, pipe._radius_state, pipe._t_gnss, ref.state,
-                               pipe.fused.state, prev, corner_s)
+                               pipe.fused.state, prev, corner_s, pipe.kinematic._state)
     post_p = PostParams(pipe._friction_prm, pipe._validity_prm, pipe._unc_prm)
     post_s = PostState(pipe._friction_state, pipe._unc_state, pipe._t_start)
     return (Params(sensors, force_p, velocity_p, post_p, columns(names)),
