@@ -203,33 +203,31 @@ _TORQUES = ("torque_fl", "torque_fr", "torque_rl", "torque_rr")
     ("fused", "ukf", "axle"), ("reference", "ukf", "axle"), ("fused", "pid", "opinion"),
     ("reference", "naive", "axle"), ("kf", "ukf_rw", "adaptive"), ("ukf", "uio", "opinion"),
     ("lpv", "ukf", "axle"), ("kinematic", "ukf", "axle")])
-def test_compiled_composition_equals_the_stage_by_stage_path(velocity, force, fusion, missing,
-                                                             monkeypatch):
-    """pipeline.rows composes the stages in one compiled call over blocks; the stage-by-stage
-    path (Pipeline._advance) it replaces where it covers a log must give the same numbers bit
-    for bit: an AWD ice launch (the fused filter switches to the corner measurement) with a
-    10 Hz gnss_speed (the radius scale and latency), less the channels in ``missing`` (a_x
-    from the wheel speeds, the level-road a_z, the quasi-static attitude, the chassis
-    torques, no wheel speeds: the GNSS speed alone). And step() through
-    the same call gives the same rows."""
+def test_one_compiled_composition_for_run_and_step(velocity, force, fusion, missing):
+    """pipeline.rows composes every stage in one compiled call over blocks of samples, run()
+    over chunks and step() over one row: an AWD ice launch (the fused filter switches to the
+    corner measurement) with a 10 Hz gnss_speed (the radius scale and latency), less the
+    channels in ``missing`` (a_x from the wheel speeds, the level-road a_z, the quasi-static
+    attitude, the chassis torques, no wheel speeds: the GNSS speed alone). The split into
+    chunks and blocks changes no number: run() in chunks of 300 (not a multiple of the 1024
+    block) and step() give the default run's numbers bit for bit. (Before the stage-by-stage
+    path was deleted, this test held these 8 configurations × 7 sensor sets bit-identical to
+    it.)"""
+    if velocity not in ("fused", "reference") and "omega_fl" in missing:
+        pytest.skip("the corner observers and the kinematic integrator need wheel speeds")
     run = strip(simulate(get_maneuver("launch_ice", tire="magic"), SUV, seed=1)).iloc[:1600]
     run = run.drop(columns=list(missing))
     fix = np.arange(len(run)) % 20 == 0
     raw = simulate(get_maneuver("launch_ice", tire="magic"), SUV, seed=1)["ref_vx"]
     run["gnss_speed"] = np.where(fix, 1.01 * raw.to_numpy()[:1600], np.nan)
-    if velocity not in ("fused", "reference") and "omega_fl" in missing:
-        pytest.skip("the corner observers and the kinematic integrator need wheel speeds")
     cfg = PipelineConfig(velocity=velocity, force=force, fusion=fusion)
-    compiled = Pipeline(SUV, cfg)
-    batch = compiled.run(run)
-    assert compiled._rows is not None  # the compiled composition ran
-    monkeypatch.setattr(Pipeline, "_compiled_rows", lambda self, u: False)
-    staged = Pipeline(SUV, cfg).run(run)
-    assert list(batch.columns) == list(staged.columns)
-    np.testing.assert_array_equal(batch.to_numpy(), staged.to_numpy())
-    monkeypatch.undo()
+    batch = Pipeline(SUV, cfg).run(run)
+    assert np.isfinite(batch["vx"]).all()
+    chunked = Pipeline(SUV, cfg).run(run, chunk=300)
+    np.testing.assert_array_equal(chunked.to_numpy(), batch.to_numpy())
     online = Pipeline(SUV, cfg)
-    rows = pd.DataFrame([online.step(r) for r in run.to_dict("records")])[batch.columns]
+    rows = pd.DataFrame([online.step(r) for r in run.to_dict("records")])
+    assert list(rows.columns) == list(batch.columns)
     np.testing.assert_array_equal(rows.to_numpy(), batch.to_numpy())
 
 

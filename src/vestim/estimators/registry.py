@@ -8,8 +8,8 @@ choices, with their papers and parameter tables) and the conformance suite
 (``tests/test_conformance.py``), which runs every registered method, and the pipeline, which
 builds the corner observer a velocity method names (``corner``). A new corner observer is a
 method of :class:`~vestim.estimators.velocity.corner.CornerVelocityEstimator` and one
-``register`` call; a velocity method of another kind also needs its branch in
-``Pipeline._advance``.
+``register`` call; a velocity method of another kind also needs its branch, on its code, in
+:func:`vestim.pipeline.rows.pipeline_rows`.
 
 Stages (:data:`STAGES`): ``force`` (longitudinal tire force), ``normal`` (load transfer),
 ``velocity`` (CG and corner velocity) and ``fusion`` (corner estimates to the CG).

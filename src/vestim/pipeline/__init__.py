@@ -39,9 +39,9 @@ from __future__ import annotations
 import itertools
 import math
 from collections.abc import Callable, Iterable, Iterator, Mapping
-from dataclasses import fields, replace
+from dataclasses import replace
 from pathlib import Path
-from typing import Any
+from typing import Any, NamedTuple
 
 import numba
 import numpy as np
@@ -52,22 +52,18 @@ from vestim.errors import LogFormatError
 from vestim.estimators import registry
 from vestim.estimators.force import ForceEstimator
 from vestim.estimators.force.estimator import (
+    REQUIRED,
     WHEEL_OUTPUTS,
-    ColumnGroup,
     Inputs,
-    columns_from_groups,
-    force_groups,
-    frame_from_chunks,
+    check_speeds,
+    check_torques,
     inputs_from_log,
-    normalised,
 )
 from vestim.estimators.friction import (
     corner_kx,
     friction_params,
-    friction_potential,
     new_friction_state,
 )
-from vestim.estimators.fusion import confidences, fuse
 from vestim.estimators.health import (
     health_params,
     imu_health_kernel,
@@ -80,20 +76,16 @@ from vestim.estimators.health import (
 from vestim.estimators.health import new_state as new_health_state
 from vestim.estimators.uncertainty import new_state as new_uncertainty_state
 from vestim.estimators.uncertainty import (
-    uncertainty,
     uncertainty_params,
 )
-from vestim.estimators.validity import VY_UNVERIFIED, validity, validity_params
-from vestim.estimators.validity import output_names as validity_names
-from vestim.estimators.velocity.corner import CornerVelocityEstimator, CornerVelocityInput
+from vestim.estimators.validity import VY_UNVERIFIED, validity_params
+from vestim.estimators.velocity.corner import CornerVelocityEstimator
 from vestim.estimators.velocity.kinematic import KinematicIntegrator
 from vestim.estimators.velocity.lpv_observer import LPVParams
 from vestim.estimators.velocity.lugre_kf import KFParams
 from vestim.estimators.velocity.reference import (
     ReferenceFilter,
-    axle_slip_angles,
     clear_state,
-    gnss_calibration,
     new_radius_state,
     new_stiffness_state,
     radius_params,
@@ -131,13 +123,6 @@ HOLD_S = 0.5
 
 CHUNK = 65_536
 """Samples per chunk of :meth:`Pipeline.run` (bounds the intermediate arrays to ~100 MB)."""
-
-
-def _slice_inputs(u: Inputs, start: int, stop: int) -> Inputs:
-    """Samples [start, stop) of the inputs, as contiguous arrays (flags kept)."""
-    arrays: dict[str, Any] = {f.name: np.ascontiguousarray(getattr(u, f.name)[start:stop])
-                              for f in fields(u) if isinstance(getattr(u, f.name), np.ndarray)}
-    return replace(u, **arrays)
 
 
 class Pipeline:
@@ -211,12 +196,11 @@ class Pipeline:
         self._validity_prm = validity_params(self.config.validity)
         self._unc_state = new_uncertainty_state()
         self._health_buf = (np.empty(4), np.empty((1, 4)), np.empty((1, 4)))
-        # step()'s compiled entry points (wheel health, IMU health, post) for these types
+        # step()'s compiled entry points (wheel health, IMU health) for these types
         self._step_calls: tuple[Callable[..., None], ...] | None = None
-        # health and "input faulty" rows of the block _advance is working on (run and step)
-        self._chunk_faulty: np.ndarray | None = None
+        # step()'s health rows of the sample (None: that health stage did not run)
         self._chunk_health: np.ndarray | None = None
-        self._step_rates: tuple[bool, ...] | None = None  # optional channels last noted
+        self._layout: _Layout | None = None  # step()'s channels, checked once per set
 
     def reset(self) -> None:
         """Forget every stage's state."""
@@ -240,7 +224,7 @@ class Pipeline:
         self._t_gnss = np.array([np.nan])
         self._fused_is_reference = True
         self._rows = None
-        self._step_rates = None
+        self._layout = None
 
     def unverified_warning(self) -> dict[str, str | float | None] | None:
         """The consistency monitor's warning for the output metadata (the shape of
@@ -261,208 +245,6 @@ class Pipeline:
                             "accelerometer scale error); v_y, β and the slip angles there are "
                             "the integral alone (reason_velocity bit 64, 'v_y unverified')"),
                 "evidence": share, "check": "lateral_consistency"}
-
-    def _yaw_acceleration(self, t: np.ndarray, r: np.ndarray) -> np.ndarray:
-        """Backward difference of the gyro across chunk boundaries (0 at the first sample)."""
-        acc = np.empty(t.shape[0])
-        self._prev = np.array(self._prev)  # may be a view of the compiled step's state
-        kin.yaw_acceleration_kernel(t, r, self._prev, acc)
-        return acc
-
-    def _corner_cg(self, out: Any, u: Any) -> np.ndarray:
-        """Each corner observer's estimate mapped to the CG (n, 4), m/s (001 eq. (33))."""
-        vx_b, _ = kin.to_body_frame(out.vxt, np.where(np.isnan(out.vyt), 0.0, out.vyt), u.delta)
-        vx_cg, _ = kin.corners_to_cg(vx_b, np.zeros_like(vx_b), u.yaw_rate, self._xw, self._yw)
-        return np.asarray(vx_cg)
-
-    def _fuse_corners(self, out: Any, u: Any, res: dict[str, np.ndarray],
-                      v_ref: np.ndarray) -> np.ndarray:
-        """The corner observers' CG v_x (n,) by the configured fusion (003 Alg. 2).
-
-        The slip ratio that sets each corner's confidence (003 eq. (6)) and the adaptive
-        axle weights (001 eq. (34)) is taken against the reference filter's velocity
-        ``v_ref`` (n, 2) mapped to that corner, not against the corner's own v̂_xt: a
-        corner observer that has drifted towards R·ω would otherwise report a small slip
-        and keep its confidence (split-μ RWD launch: the high-μ rear wheel's KF is 4 m/s
-        off while its own slip reads 0.03). Stores the opinion confidences in ``res``.
-        """
-        cfg = self.config
-        vx_i, vy_i = kin.cg_to_corners(v_ref[:, 0], v_ref[:, 1], u.yaw_rate, self._xw, self._yw)
-        vxt, _ = kin.to_tire_frame(vx_i, vy_i, u.delta)
-        slip = kin.slip_ratio(u.omega, vxt, self.vehicle.body.wheel_radius)
-        vx, _ = fuse(cfg.fusion, self._corner_cg(out, u), slip, cfg.fusion_params)
-        if cfg.fusion == "opinion":
-            res["confidence"] = confidences(slip, cfg.fusion_params)
-        return vx
-
-    def _corners(self, u: Any, res: dict[str, np.ndarray], mu_x: np.ndarray,
-                 ref: dict[str, np.ndarray]) -> Any:
-        """Run the corner observer (inputs as in corner_inputs: 001 text after eq. (21)).
-
-        ``ref`` is the reference filter's output: its v_y sets the tire-frame transport term
-        (the no-sideslip approximation fails when the car slides: 4–5 % v_x in RWD spins),
-        and its accelerometer biases b_x, b_y (learnt while the wheels roll) are removed
-        from the accelerations the corner observers integrate in high slip (a 0.1 m/s²
-        bias otherwise costs the corner KF 10 % on a 9 s ice launch).
-        """
-        assert self.corner is not None
-        yaw_acc = self._yaw_acceleration(u.t, u.yaw_rate)
-        bias = ref["bias"]
-        ax_i, ay_i = kin.corner_accelerations(res["f_x"] - bias[:, 0], res["f_y"] - bias[:, 1],
-                                              u.yaw_rate, yaw_acc, self._xw, self._yw)
-        a_xt, a_yt = kin.to_tire_frame(ax_i, ay_i, u.delta)
-        vx_guess = self.vehicle.body.wheel_radius * u.omega.mean(axis=1)
-        vx_i, vy_i = kin.cg_to_corners(vx_guess, ref["v"][:, 1], u.yaw_rate, self._xw, self._yw)
-        _, vyt = kin.to_tire_frame(vx_i, vy_i, u.delta)
-        fz = res["fz"]
-        mu_y = normalised(res["fy"], fz)
-        inp = CornerVelocityInput(t=u.t, omega=u.omega, mu_x=mu_x, a_xt=a_xt, delta=u.delta,
-                                  yaw_rate=u.yaw_rate, mu_y=mu_y, a_yt=a_yt, vyt=vyt)
-        return self.corner.advance(inp)
-
-    def _advance(self, u: Any) -> dict[str, np.ndarray]:
-        method = self.config.velocity
-        wheels = u.omega_measured
-        if not wheels and registry.lookup("velocity", method).needs_wheel_speeds:
-            raise PipelineConfigError(
-                f"velocity method {method!r} needs the wheel speeds omega_fl … omega_rr, which "
-                "the log does not have: use velocity 'reference' or 'fused' (the default)")
-        self._rows = None  # this path replaces state arrays the compiled one's trees share
-        res = self.force.advance(u)  # fills a missing a_x, and ω from the speed (see module)
-        self._note_sources(u)
-        fz = res["fz"]
-        mu_x = normalised(res["fx"], fz)
-        n = u.t.shape[0]
-        # Linear-tire axle slip angles with the cornering stiffness identified online.
-        axle_slip = np.empty((n, 2))
-        c_y = np.empty(n)
-        axle_slip_angles(self._stiff_prm, self._stiff_state, u.t, u.omega, u.yaw_rate, u.delta,
-                         res["fy"], fz, axle_slip, c_y)
-        # The velocity stage sees the wheel speeds at the effective radius that the GNSS
-        # speed shows, and the fixes brought forward by the receiver's latency (scale 1 and
-        # no measurement without gnss_speed).
-        scale, latency, gnss_now = np.empty((3, n))
-        if wheels:
-            gnss_calibration(self._radius_prm, self._radius_state, u.t, u.omega, u.gnss_speed,
-                             scale, latency, gnss_now)
-        else:  # no wheel speeds to scale nor to find the latency against
-            scale[:], latency[:], gnss_now[:] = 1.0, 0.0, u.gnss_speed
-        if np.any(scale != 1.0):
-            u = replace(u, omega=np.ascontiguousarray(u.omega * scale[:, None]))
-        gnss = np.isfinite(gnss_now)
-        extra = gnss_now[:, None]
-        # A fix's error is white at the receiver's rate: undo the τ_wheel/T_s inflation the
-        # filter gives every extra CG-speed measurement (per-sample T_s), so its weight does
-        # not depend on the log's sample rate.
-        p_ref = self.config.reference
-        dt = np.diff(u.t, prepend=self._t_gnss[0])
-        self._t_gnss[0] = u.t[-1]
-        inflate = np.maximum(p_ref.tau_wheel / np.where(dt > 0, dt, np.inf), 1.0)
-        var = np.where(gnss, p_ref.sigma_gnss**2 / inflate, np.nan)[:, None]
-        mu_x_c = np.ascontiguousarray(mu_x)
-        if not wheels:
-            # The reference filter without wheel measurements (NaN ω): v_x from a_x and the
-            # speed updates (a dense vehicle_speed enters like a wheel, with the τ_wheel/T_s
-            # inflation), v_y from the same lateral part as with wheel speeds.
-            if u.vehicle_speed is not None:
-                extra = np.column_stack((extra, u.vehicle_speed))
-                var = np.column_stack((var, np.full(n, p_ref.sigma_vehicle_speed**2)))
-            vel = self.reference.advance(u.t, np.full_like(u.omega, np.nan), u.torque, mu_x_c,
-                                         axle_slip, res["f_x"], res["f_y"], u.yaw_rate,
-                                         u.delta, extra, var, fx_from_speed=not u.ax_measured,
-                                         fy_sd=res["fy_sd"])
-            v, sig, bias, unverified = (vel["v"], vel["sigma"], vel["bias"][:, 0],
-                                          vel["bias"][:, 3])
-        elif method == "kinematic":
-            v = self.kinematic.advance(u.t, u.omega, res["f_x"], res["f_y"], u.yaw_rate)
-            sig = np.full_like(v, np.nan)
-            bias = unverified = np.full(n, np.nan)
-        elif method == "fused":
-            # Corner estimates are information where the wheel speeds have none: they
-            # enter (σ = sigma_corner_slip, inflated by the filter for their correlation
-            # time) only while at least three corners are in high slip, i.e. when no wheel
-            # speed can be trusted. Elsewhere the corner KF is biased in moderate slip
-            # (docs/results.md) and the wheel speeds already carry the information. The
-            # corner KF's transport term takes v_y from the plain reference filter (the
-            # no-sideslip approximation fails when the car slides: 4–5 % v_x in RWD spins).
-            start = self.reference.snapshot() if self._fused_is_reference else ()
-            ref = self.reference.advance(u.t, u.omega, u.torque, mu_x_c, axle_slip, res["f_x"],
-                                         res["f_y"], u.yaw_rate, u.delta, extra, var,
-                                         fx_from_speed=not u.ax_measured,
-                                         fy_sd=res["fy_sd"])
-            out = self._corners(u, res, mu_x_c, ref)
-            vx_corner = self._fuse_corners(out, u, res, ref["v"])
-            p = self.config.reference
-            all_slip = out.high_slip.sum(axis=1) >= 3
-            if self._fused_is_reference and not all_slip.any():
-                # Until the first corner measurement the fused filter is the plain one, bit
-                # for bit (same kernel, inputs and state): its run is skipped.
-                vel = ref
-            else:
-                if self._fused_is_reference:
-                    self.fused.restore(start)
-                    self._fused_is_reference = False
-                extra2 = np.column_stack((extra, np.where(all_slip, vx_corner, np.nan)))
-                var2 = np.column_stack((var, np.where(all_slip, p.sigma_corner_slip**2,
-                                                      np.nan)))
-                vel = self.fused.advance(u.t, u.omega, u.torque, mu_x_c, axle_slip, res["f_x"],
-                                         res["f_y"], u.yaw_rate, u.delta, extra2, var2,
-                                         fx_from_speed=not u.ax_measured,
-                                         fy_sd=res["fy_sd"])
-            v, sig, bias, unverified = (vel["v"], vel["sigma"], vel["bias"][:, 0],
-                                          vel["bias"][:, 3])
-        else:
-            vel = self.reference.advance(u.t, u.omega, u.torque, mu_x_c, axle_slip, res["f_x"],
-                                         res["f_y"], u.yaw_rate, u.delta, extra, var,
-                                         fx_from_speed=not u.ax_measured,
-                                         fy_sd=res["fy_sd"])
-            v, sig, bias, unverified = (vel["v"], vel["sigma"], vel["bias"][:, 0],
-                                          vel["bias"][:, 3])
-            if self.corner is not None:
-                out = self._corners(u, res, mu_x_c, vel)
-                # CG v_x by the fusion stage; v_y from the reference filter.
-                v = np.column_stack((self._fuse_corners(out, u, res, v), v[:, 1]))
-                sig = np.full_like(v, np.nan)
-        vx_i, vy_i = kin.cg_to_corners(v[:, 0], v[:, 1], u.yaw_rate, self._xw, self._yw)
-        vxt, vyt = kin.to_tire_frame(vx_i, vy_i, u.delta)
-        slip_ratio = kin.slip_ratio(u.omega, vxt, self.vehicle.body.wheel_radius)
-        if not wheels:
-            slip_ratio = np.full_like(slip_ratio, np.nan)
-            scale = np.full(n, np.nan)
-            latency = np.full(n, np.nan)
-        slip_angle = kin.slip_angle(vxt, vyt)
-        # σ of every channel (the estimates themselves are unchanged; friction and validity
-        # below use the filter's σ_vy as before).
-        unc = uncertainty(u.t, v, sig, u.delta, u.omega,
-                          u.ax if u.ax_measured else res["f_x"], u.ay, fz, vxt, vyt, slip_ratio,
-                          c_y, self._unc_prm, self._unc_state)
-        res.update({f"uncertainty.{k}": a for k, a in unc.items()})
-        res.update({"v": v, "sigma_v": sig, "bias": bias, "vy_unverified": unverified,
-                    "vx_i": vx_i, "vy_i": vy_i,
-                    "cornering_stiffness": c_y, "radius_scale": scale,
-                    "gnss_latency": latency,
-                    "vxt": vxt, "vyt": vyt,
-                    "slip_ratio": slip_ratio, "slip_angle": slip_angle})
-        res["mu"], res["sigma_mu"], res["mu_excited"] = friction_potential(
-            self._friction_prm, self._friction_state, u.t, res["fx"], res["fy"], res["fz"],
-            res["sigma_fx"], res["sigma_fy"], slip_ratio, slip_angle,
-            np.fmax(sig[:, 1], self._friction_prm.sigma_vy_floor)
-            / np.maximum(np.abs(v[:, 0]), 1.0), c_y)
-        if math.isnan(self._t_start[0]):
-            self._t_start[0] = u.t[0]
-        if wheels:
-            res["health_omega"] = (self._chunk_health if self._chunk_health is not None
-                                   else np.ones((n, 4)))
-        res["health_imu"] = self._chunk_imu if self._chunk_imu is not None else np.ones((n, 3))
-        res.update(validity(u.t, float(self._t_start[0]), v[:, 0], slip_ratio, slip_angle,
-                            u.delta[:, :2], u.ay,
-                            self._chunk_faulty if self._chunk_faulty is not None
-                            else np.full(n, self._held_now),
-                            self.config.validity, res["vy_unverified"]))
-        self.vy_unverified_rows += int(np.count_nonzero(
-            res["reason_velocity"].astype(np.int64) & VY_UNVERIFIED))
-        self.rows_estimated += n
-        return res
 
     def _note_sources(self, u: Inputs) -> None:
         """The input sources of ``u`` in the force estimator's metadata (after its own)."""
@@ -490,11 +272,6 @@ class Pipeline:
         return rows_kernel.output_columns(
             wheels, cfg.force in ("ukf", "ukf_rw"), filtered, cfg.velocity != "kinematic",
             corners and cfg.fusion == "opinion")
-
-    def _compiled_rows(self, u: Inputs) -> bool:
-        """Whether :func:`~vestim.pipeline.rows.pipeline_rows` covers this configuration and
-        these inputs (any sensor set it takes)."""
-        return rows_kernel.covers(self)
 
     def _run_rows(self, u: Inputs, faulty: np.ndarray, health: np.ndarray,
                   imu_health: np.ndarray, spans: list[tuple[int, int]], restarts: list[int],
@@ -530,52 +307,6 @@ class Pipeline:
         self.rows_estimated += n
         return pd.DataFrame(block.T, columns=list(names), copy=False)
 
-    @staticmethod
-    def _groups(t: np.ndarray, res: dict[str, np.ndarray]) -> list[ColumnGroup]:
-        """The output channels grouped by quantity (see :func:`force_groups`)."""
-
-        def names(prefix: str) -> list[str]:
-            return [f"{prefix}_{c}" for c in CORNERS]
-
-        wheels = bool(res["wheel_speeds"])  # else the outputs of WHEEL_ONLY_OUTPUTS are left out
-        unc = {k.removeprefix("uncertainty."): a for k, a in res.items()
-               if k.startswith("uncertainty.")}
-
-        def sigma(*quantities: str) -> list[ColumnGroup]:
-            return [(names(f"sigma_{q}"), np.column_stack([unc[f"sigma_{q}_{c}"] for c in CORNERS]))
-                    for q in quantities]
-
-        groups: list[ColumnGroup] = [(["t"], t), (["vx", "vy"], res["v"])]
-        velocity_sigma = not np.all(np.isnan(res["sigma_v"]))  # the methods with a filter σ
-        if velocity_sigma:
-            groups.append((["sigma_vx", "sigma_vy"],
-                           np.column_stack((unc["sigma_vx"], unc["sigma_vy"]))))
-            groups += sigma("vx", "vy", "vxt", "vyt", "slip_angle")
-            if wheels:
-                groups += sigma("slip_ratio")
-        groups += [*sigma("fz"), (["sigma_roll", "sigma_pitch"],
-                                  np.column_stack((unc["sigma_roll"], unc["sigma_pitch"])))]
-        groups += [(names("vx"), res["vx_i"]), (names("vy"), res["vy_i"]),
-                   (names("vxt"), res["vxt"]), (names("vyt"), res["vyt"])]
-        if wheels:
-            groups.append((names("slip_ratio"), res["slip_ratio"]))
-        groups += [(names("slip_angle"), res["slip_angle"]), *force_groups(res)]
-        if not np.all(np.isnan(res["bias"])):
-            groups.append((["bias_ax"], res["bias"]))
-        groups.append((["cornering_stiffness"], res["cornering_stiffness"]))
-        if wheels:
-            groups.append((["radius_scale", "gnss_latency"],
-                           np.column_stack((res["radius_scale"], res["gnss_latency"]))))
-        if "confidence" in res:
-            groups.append((names("confidence"), res["confidence"]))
-        groups += [(names("mu"), res["mu"]), (names("sigma_mu"), res["sigma_mu"]),
-                   ([f"mu_{c}_excited" for c in CORNERS], res["mu_excited"])]
-        groups += [([k], res[k]) for k in validity_names()]
-        if "health_omega" in res:
-            groups.append(([f"health_omega_{c}" for c in CORNERS], res["health_omega"]))
-        groups.append((["health_ax", "health_ay", "health_yaw_rate"], res["health_imu"]))
-        return groups
-
     def _calls(self) -> tuple[Callable[..., None], ...]:
         """:meth:`step`'s compiled per-sample health calls (:func:`wheel_health_step`,
         :func:`imu_health_step`) as entry points for the Numba types of this pipeline's
@@ -599,7 +330,6 @@ class Pipeline:
             w[0], w[1] = float(sample["omega_fl"]), float(sample["omega_fr"])
             w[2], w[3] = float(sample["omega_rl"]), float(sample["omega_rr"])
         except KeyError:  # no wheel speeds: nothing to check
-            self._chunk_faulty = _HELD[self._held_now]
             self._chunk_health = None
             return sample
         self._calls()[0](self._health_prm, self._health_state, float(sample["t"]), w, out[0],
@@ -608,7 +338,6 @@ class Pipeline:
         h = health[0].tolist()
         bad = h[0] + h[1] + h[2] + h[3] < 4.0
         self._held_now = self._held_now or bad
-        self._chunk_faulty = _HELD[self._held_now]
         if not bad:
             return sample
         fixed = dict(sample)
@@ -636,7 +365,6 @@ class Pipeline:
         if min(h) == 1.0:
             return sample
         self._held_now = True
-        self._chunk_faulty = _HELD[True]
         fixed = dict(sample)
         for key, value in zip(("ax", "ay", "yaw_rate"), out.tolist(), strict=True):
             if key in fixed:
@@ -767,42 +495,23 @@ class Pipeline:
                 spans = [(a, min(a + chunk, e)) for s_, e in itertools.pairwise(cuts)
                          for a in range(s_, max(e, s_ + 1), chunk)]
 
-                def advance(a: int, stop: int, u: Inputs = u, faulty: np.ndarray = faulty,
-                            health: np.ndarray = health, imu_health: np.ndarray = imu_health,
-                            restarts: list[int] = restarts, done: int = done,
-                            ) -> list[ColumnGroup]:
-                    if a in restarts:  # the first sample after a gap: start again
-                        self.reset()
-                    self._chunk_faulty, self._chunk_health = faulty[a:stop], health[a:stop]
-                    self._chunk_imu = imu_health[a:stop]
-                    groups = self._groups(u.t[a:stop], self._advance(_slice_inputs(u, a, stop)))
+                def on_span(stop: int, done: int = done) -> None:
                     if progress is not None and total:
                         progress(min((done + stop) / total, 1.0))
-                    return groups
 
-                if self._compiled_rows(u):
-                    def on_span(stop: int, done: int = done) -> None:
-                        if progress is not None and total:
-                            progress(min((done + stop) / total, 1.0))
-
-                    columns = self._columns(u.omega_measured)
-                    frame = self._run_rows(u, faulty, health, imu_health, spans, restarts,
-                                           tuple(names) or columns, on_span)
-                else:
-                    frame = frame_from_chunks((advance(a, e) for a, e in spans), n, names)
+                frame = self._run_rows(u, faulty, health, imu_health, spans, restarts,
+                                       tuple(names) or self._columns(u.omega_measured), on_span)
                 names = list(frame.columns)
                 t_last, done = float(u.t[-1]), done + n
                 yield frame
         finally:
-            self._chunk_faulty = self._chunk_health = self._chunk_imu = None
+            self._chunk_health = self._chunk_imu = None
 
     def step(self, sample: Mapping[str, float]) -> dict[str, float]:
         """Advance by one sample (mapping of the log's column names); return that row.
 
-        In the configurations and with the sensors :mod:`vestim.pipeline.rows` covers, the
-        sample goes through :func:`~vestim.pipeline.rows.pipeline_rows`, the call
-        :meth:`run` makes over its blocks; others through the general path. Both give the batch
-        result.
+        The sample goes through :func:`~vestim.pipeline.rows.pipeline_rows`, the call
+        :meth:`run` makes over its blocks, so the two give the same numbers.
 
         A live feed drops values: a NaN or inf in a measured channel is replaced by its value
         in the last sample whose every value was finite, for up to :data:`HOLD_S` (one bad
@@ -828,18 +537,11 @@ class Pipeline:
             cols = {k: np.array([float(v)]) for k, v in sample.items()}
             correct_columns(cols, cal, wheel_radius=b.wheel_radius, steering_ratio=b.steering_ratio)
             sample = {k: float(v[0]) for k, v in cols.items()}
-        sample = self._imu_health(sample)
-        row = self._row_step(sample)
-        if row is not None:
-            return row
-        self._rows = None  # the general path replaces state arrays the trees share
-        u = self.force._inputs_from_sample(sample)
-        cols = columns_from_groups(self._groups(u.t, self._advance(u)))
-        return {k: float(v[0]) for k, v in cols.items()}
+        return self._row_step(self._imu_health(sample))
 
     def _trees(self, names: tuple[str, ...], sensors: rows_kernel.Sensors) -> None:
         """Make :func:`~vestim.pipeline.rows.pipeline_rows`' parameter and state trees once
-        (until a reset or the general path), for a log with ``sensors``, writing Y's rows in
+        (until a reset), for a log with ``sensors``, writing Y's rows in
         the order of ``names``."""
         if self._rows is None or sensors != self._rows[0].sensors:
             self._rows = rows_kernel.build(self, names, sensors)
@@ -858,34 +560,67 @@ class Pipeline:
             self._rows_fn = _compiled(rows_kernel.pipeline_rows, P, S, X, Y, start, stop)
         self._rows_fn(P, S, X, Y, start, stop)
         prev = S.velocity.prev
-        self._prev = prev[:2]  # a view: the general path replaces it, never writes into it
+        self._prev = prev[:2]  # a view (reset() replaces it)
         self._fused_is_reference = bool(prev[2])
         if self.corner is not None and self.config.velocity == "fused":
             self.corner._t_last = float(X[stop - start - 1, rows_kernel.X_T])
 
-    def _row_step(self, sample: Mapping[str, float]) -> dict[str, float] | None:
-        """One sample through :func:`~vestim.pipeline.rows.pipeline_rows`, or None where it
-        does not cover the configuration or the sample (no wheel speeds, torques or per-wheel
-        steering: the general path)."""
-        if not rows_kernel.covers(self):
-            return None
+    def _step_layout(self, sample: Mapping[str, float]) -> _Layout:
+        """What a sample with these channels holds (checked once per set of channels).
+
+        Raises:
+            LogFormatError: a required channel, or a steering channel, is missing; some wheel
+                speeds or torques but not all four; no speed channel at all.
+        """
+        keys = sample.keys()
+        if self._layout is not None and keys == self._layout.keys:
+            return self._layout
+        missing = [c for c in REQUIRED if c not in sample]
+        if missing:
+            raise LogFormatError(f"the force estimators need channel(s) {', '.join(missing)} "
+                                 "in every sample")
+        torques = check_torques(sample, "sample")
+        wheels = check_speeds(sample, "sample")
+        steering = next((k for k in ("delta_fl", "delta", "steering_wheel_angle") if k in sample
+                         and (k != "delta_fl" or "delta_fr" in sample)), None)
+        if steering is None:
+            raise LogFormatError("no steering channel: give delta_fl and delta_fr, delta, or "
+                                 "steering_wheel_angle")
+        present = ("ax" in sample, "az" in sample, torques, wheels, "vehicle_speed" in sample,
+                   "roll_rate" in sample, "pitch_rate" in sample)
+        speed = "wheel_speeds" if wheels else "vehicle_speed" if present[4] else "gnss_speed"
+        self.force.note_sources({
+            "torque_source": "measured" if torques else "chassis",
+            "az_source": "measured" if present[1] else "level_road",
+            "roll_source": "rate" if present[5] else "quasi_static",
+            "pitch_source": "rate" if present[6] else "quasi_static",
+            "ax_source": "measured" if present[0] else speed, "speed_source": speed,
+            "outputs_unavailable": "none" if wheels else ",".join(WHEEL_ONLY_OUTPUTS)})
+        self._layout = _Layout(set(keys), _SENSORS[present[:5]], steering,
+                               self._columns(wheels))
+        return self._layout
+
+    def _row_step(self, sample: Mapping[str, float]) -> dict[str, float]:
+        """One sample through :func:`~vestim.pipeline.rows.pipeline_rows` (the call run()
+        makes over its blocks)."""
+        layout = self._step_layout(sample)
+        sensors = layout.sensors
         x = self._x1[0]
         get = sample.get
         nan = math.nan
-        try:
-            x[rows_kernel.X_T] = float(sample["t"])
+        x[rows_kernel.X_T] = float(sample["t"])
+        for j, key in enumerate(_OMEGA_KEYS, rows_kernel.X_OMEGA):
+            x[j] = float(sample[key]) if sensors.omega else nan
+        for j, key in enumerate(_TORQUES, rows_kernel.X_TORQUE):
+            x[j] = float(sample[key]) if sensors.torque else nan
+        if layout.steering == "delta_fl":
             x[rows_kernel.X_DELTA] = float(sample["delta_fl"])
             x[rows_kernel.X_DELTA + 1] = float(sample["delta_fr"])
-            wheels = "omega_fl" in sample
-            for j, key in enumerate(_OMEGA_KEYS, rows_kernel.X_OMEGA):
-                x[j] = float(sample[key]) if wheels else nan
-            torques = "torque_fl" in sample
-            for j, key in enumerate(_TORQUES, rows_kernel.X_TORQUE):
-                x[j] = float(sample[key]) if torques else nan
-        except KeyError:  # no per-wheel steering, or some wheel speeds or torques only
-            return None
-        if not wheels and "gnss_speed" not in sample and "vehicle_speed" not in sample:
-            return None  # the general path names what is missing
+        else:
+            d = float(sample[layout.steering])
+            if layout.steering == "steering_wheel_angle":
+                d = d / self.vehicle.body.steering_ratio
+            x[rows_kernel.X_DELTA] = x[rows_kernel.X_DELTA + 1] = d
         x[rows_kernel.X_AX] = float(get("ax", nan))
         x[rows_kernel.X_AY] = float(get("ay", 0.0))
         x[rows_kernel.X_AZ] = float(get("az", nan))
@@ -899,34 +634,27 @@ class Pipeline:
             _ONES if self._chunk_health is None else self._health_buf[2][0])
         x[rows_kernel.X_HEALTH_IMU:rows_kernel.X_GNSS] = (
             _ONES[:3] if self._chunk_imu is None else self._imu_buf[3][0])
-        present = ("ax" in sample, "az" in sample, torques, wheels, "vehicle_speed" in sample,
-                   "roll_rate" in sample, "pitch_rate" in sample)
-        columns = self._columns(wheels)
-        self._trees(columns, _SENSORS[present[:5]])
+        columns = layout.columns
+        self._trees(columns, sensors)
         self._call_rows(self._x1, self._y1, 0, 1)
-        if present != self._step_rates:
-            self._step_rates = present
-            speed = ("wheel_speeds" if wheels else
-                     "vehicle_speed" if present[4] else "gnss_speed")
-            self.force.note_sources({
-                "torque_source": "measured" if present[2] else "chassis",
-                "az_source": "measured" if present[1] else "level_road",
-                "roll_source": "rate" if present[5] else "quasi_static",
-                "pitch_source": "rate" if present[6] else "quasi_static",
-                "ax_source": "measured" if present[0] else speed, "speed_source": speed,
-                "outputs_unavailable": "none" if wheels else ",".join(WHEEL_ONLY_OUTPUTS)})
         return dict(zip(columns, self._y1[:len(columns), 0].tolist(), strict=True))
+
+
+class _Layout(NamedTuple):
+    """A sample's channels as :meth:`Pipeline.step` read them: its keys, the sensors, the
+    steering channel (``delta_fl`` for both front wheels' angles, ``delta`` or
+    ``steering_wheel_angle``) and the output columns."""
+
+    keys: set[str]
+    sensors: rows_kernel.Sensors
+    steering: str
+    columns: tuple[str, ...]
 
 
 _TORQUES = tuple(f"torque_{c}" for c in CORNERS)
 
 _SENSORS = {key: rows_kernel.Sensors(*key) for key in itertools.product((False, True), repeat=5)}
 """The :class:`~vestim.pipeline.rows.Sensors` of a sample, made once."""
-
-"""The :class:`~vestim.pipeline.rows.Sensors` of a sample, made once."""
-
-_HELD = {False: np.array([False]), True: np.array([True])}
-"""step()'s "input held" row of the block, by value (read only)."""
 
 _ONES = np.ones(4)
 """The health of a stage that did not run in step() (1.0: healthy)."""

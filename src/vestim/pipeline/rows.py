@@ -2,8 +2,9 @@
 
 Every stage of 001 Fig. 1 advances row by row inside one Numba kernel: the attitude and
 normal loads, the longitudinal and lateral force UKFs, the online cornering stiffness, the
-reference filter (and the fused one with the corner observer's measurement), the corner
-LuGre KF with its axle fusion, then friction, validity and uncertainty. ``P`` is one nested
+reference filter (and the fused one with the corner observers' measurement) or the kinematic
+integrator, the corner observers (LuGre KF/UKF, LPV) with their fusion to the CG, then
+friction, validity and uncertainty. ``P`` is one nested
 tree of parameters and ``S`` one tree of states (NamedTuples of arrays), built from a
 :class:`~vestim.pipeline.Pipeline` by :func:`build`; ``X`` holds the inputs (n, :data:`N_X`)
 after the health stages and ``Y`` the outputs as their transpose (columns, n): pandas stores
@@ -11,13 +12,13 @@ a float block that way, so the frame is made without a copy. :meth:`Pipeline.run
 over the rows of a chunk and :meth:`Pipeline.step` over one row, so the two give the same
 numbers by construction.
 
-It covers every force method with normal loads ``dynamic`` or ``static``, velocity ``fused`` or
-``reference``, fusion ``axle`` or ``adaptive`` (:func:`covers`), and logs with wheel speeds,
-with or without wheel torques (then from the chassis equation), ``ax`` (then from the wheel
-speeds), ``az`` (then the level-road value) and ``gnss_speed``; the other configurations
-still go through the stage-by-stage path of :meth:`Pipeline._advance`. The per-sample
-equations are those cited in :mod:`vestim.estimators.force.estimator`, :mod:`vestim.estimators.force.normal`
-and :mod:`vestim.pipeline`.
+It covers every registered configuration (force method, normal-load model, velocity method,
+fusion; each chosen by its registry code, :attr:`~vestim.estimators.registry.Method.code`)
+on every sensor set: with or without wheel torques (then from the chassis equation), ``ax``
+(then from the wheel speeds or the speed), ``az`` (then the level-road value), ``gnss_speed``
+and wheel speeds (then from ``vehicle_speed`` or the ``gnss_speed`` fixes). The per-sample
+equations are those cited in :mod:`vestim.estimators.force.estimator`,
+:mod:`vestim.estimators.force.normal` and :mod:`vestim.pipeline`.
 """
 
 from __future__ import annotations
@@ -142,7 +143,8 @@ OUTPUT_COLUMNS: tuple[str, ...] = (
     *(n for g in VALIDITY_GROUPS for n in (f"valid_{g}", f"reason_{g}")),
     *_corners("health_omega"), "health_ax", "health_ay", "health_yaw_rate")
 """The output columns, in the order of the estimate's frame (the order every configuration's
-output follows: :meth:`Pipeline._groups`); the same names as :data:`ROW_NAMES`."""
+output follows, less what :func:`output_columns` leaves out); the same names as
+:data:`ROW_NAMES`."""
 assert sorted(OUTPUT_COLUMNS) == sorted(ROW_NAMES)
 
 _WHEEL_ONLY = ("slip_ratio_", "fx_", "mu_x_", "sigma_fx_", "sigma_slip_ratio_", "health_omega_",
@@ -488,7 +490,7 @@ def _block(P: Params, S: State, x: np.ndarray, Y: np.ndarray, k0: int) -> None:
     if not sensors.omega:  # per-corner F_x needs the wheels' own speeds
         fx[:] = np.nan
         sig_fx[:] = np.nan
-    # --- velocity stage (Pipeline._advance) ---
+    # --- velocity stage ---
     mu_x = normalised(fx, fz)
     mu_y = normalised(fy, fz)
     axle = np.empty((m, 2))
@@ -630,7 +632,7 @@ def _corners_vx(P: Params, S: State, t: np.ndarray, omega: np.ndarray, delta: np
                 mu_y: np.ndarray, v_ref: np.ndarray, bias_ref: np.ndarray,
                 conf: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """The corner observers of a block (001 text after eq. (21); Pipeline._corners) and their
-    fusion to the CG (003 Alg. 2, 001 eq. (33)–(35); Pipeline._fuse_corners). Returns the
+    fusion to the CG (003 Alg. 2, 001 eq. (33)–(35)). Returns the
     fused CG v_x (m,), m/s, and the number of corners in high slip (m,); ``conf`` (m, 4)
     gets the opinion fusion's confidences.
 
@@ -731,7 +733,7 @@ def _fused(P: Params, S: State, t: np.ndarray, omega: np.ndarray, torque: np.nda
            extra_var: np.ndarray, v_ref: np.ndarray, sig_ref: np.ndarray, bias_ref: np.ndarray,
            same: bool, vx_f: np.ndarray,
            n_high: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """The fused filter of a block (Pipeline._advance's "fused"): the second reference filter
+    """The fused filter of a block (velocity "fused"): the second reference filter
     that takes the corner observers' fused CG v_x ``vx_f`` (into ``extra[:, 1]``,
     ``extra_var[:, 1]``; column 0 holds the GNSS fixes) while ≥ 3 corners are in high slip
     (``n_high``). Returns its (v, σ, bias), the reference filter's while the fused one has

@@ -228,7 +228,7 @@ class Inputs:
         return out
 
 
-def _check_torques(present: set[str] | Mapping[str, float], what: str) -> bool:
+def check_torques(present: set[str] | Mapping[str, float], what: str) -> bool:
     """True if all four torques are present, False if none; else a LogFormatError naming them."""
     have = [c for c in TORQUES if c in present]
     if len(have) in (0, len(TORQUES)):
@@ -240,7 +240,7 @@ def _check_torques(present: set[str] | Mapping[str, float], what: str) -> bool:
         "in which case F_x comes from the chassis equation (vestim.models.chassis)")
 
 
-def _check_speeds(present: set[str] | Mapping[str, float], what: str) -> bool:
+def check_speeds(present: set[str] | Mapping[str, float], what: str) -> bool:
     """True if all four wheel speeds are present, False if none and a speed channel stands in;
     else a LogFormatError naming what is missing."""
     have = [c for c in OMEGAS if c in present]
@@ -282,8 +282,8 @@ def inputs_from_log(log: pd.DataFrame, vehicle: Vehicle) -> Inputs:
         raise LogFormatError(f"the force estimators need column(s) {', '.join(missing)}; "
                              "add them to the log (see shared/spec/log-format.md)")
     cols = set(log.columns)
-    has_torque = _check_torques(cols, "log")
-    has_omega = _check_speeds(cols, "log")
+    has_torque = check_torques(cols, "log")
+    has_omega = check_speeds(cols, "log")
     front = road_wheel_angles(log, vehicle.body.steering_ratio)
     delta = np.zeros((len(log), 4))
     delta[:, :2] = front
@@ -693,8 +693,8 @@ class ForceEstimator:
         if missing:
             raise LogFormatError(f"the force estimators need channel(s) {', '.join(missing)} "
                                  "in every sample")
-        has_torque = _check_torques(sample, "sample")
-        has_omega = _check_speeds(sample, "sample")
+        has_torque = check_torques(sample, "sample")
+        has_omega = check_speeds(sample, "sample")
         if "delta_fl" in sample and "delta_fr" in sample:
             front = (sample["delta_fl"], sample["delta_fr"])
         elif "delta" in sample:

@@ -1,8 +1,8 @@
 """One-sigma uncertainty of every estimated channel (issue 15), by first-order propagation.
 
 The estimates are not changed: this stage only adds ``sigma_<channel>`` columns. One compiled
-kernel, :func:`uncertainty_kernel`, turns the arrays the pipeline holds at the end of
-``Pipeline._advance`` into σ for the CG velocity (calibrated), the corner velocities in the
+kernel, :func:`uncertainty_kernel`, turns the arrays the pipeline holds after its velocity
+stage (:mod:`vestim.pipeline.rows`) into σ for the CG velocity (calibrated), the corner velocities in the
 body and tire frames, the slip ratio and slip angle, the normal loads and the body angles.
 Its only state is the online wheel-speed noise estimate (:func:`new_state`), carried between
 chunks as the other kernels' states are, so ``run`` and ``step`` (the same kernel on n = 1
