@@ -96,23 +96,6 @@ def _note_compiling() -> None:
             f"later runs load them from {_cache.cache_dir()}"))
 
 
-def _provenance(vehicle: str, config: Any) -> dict[str, str]:
-    """Output metadata that says how an estimate was made: vestim's version, the full
-    configuration, and a SHA-256 of the vehicle file's bytes (of the built-in's, by name)."""
-    import dataclasses
-    import hashlib
-    import json
-    from importlib import resources
-
-    from vestim import __version__
-
-    p = Path(vehicle)
-    data = (p.read_bytes() if p.is_file() else
-            (resources.files("vestim") / "data" / "vehicles" / f"{vehicle}.toml").read_bytes())
-    return {"vestim_version": __version__, "vehicle_sha256": hashlib.sha256(data).hexdigest(),
-            "config": json.dumps(dataclasses.asdict(config), default=str, sort_keys=True)}
-
-
 def _fail(exc: Exception) -> typer.Exit:
     # escape: a message naming an extra ("vestim[report]") is not Rich markup
     console.print(f"[red]error:[/red] {rich.markup.escape(str(exc))}")
@@ -260,13 +243,13 @@ def estimate_cmd(
         raise _fail(ValueError(f"method {method!r}: use pipeline or stiffness-pf"))
     import dataclasses
     import itertools
-    import json
 
     import pandas as pd
 
     from vestim.io import LogWriter, check_log, iter_log, load_vehicle, parquet_rows, read_log
     from vestim.io.files import check_output_path
     from vestim.pipeline import Pipeline, PipelineConfig
+    from vestim.pipeline.provenance import estimate_metadata
 
     try:
         check_output_path(out, inputs=[log_path, map_path, config, gains], suffixes=LOG_SUFFIXES)
@@ -295,6 +278,7 @@ def estimate_cmd(
             head.append(piece)
         warnings = check_log(head[0] if len(head) == 1 else pd.concat(head, ignore_index=True),
                              veh, source=str(log_path))
+        attrs = dict(head[0].attrs)  # the input's metadata: a channel-map import's import.*
         t0 = time.perf_counter()
         _note_compiling()
         pipe = Pipeline(veh, cfg)
@@ -303,14 +287,8 @@ def estimate_cmd(
                                          total=total):
                 head = []  # the checked pieces are not held once estimated
                 writer.write(frame)
-            meta = {"vehicle": veh.name, "force": cfg.force, "normal": cfg.normal,
-                    "velocity": cfg.velocity, "fusion": cfg.fusion, "source": str(log_path),
-                    **_provenance(vehicle, cfg),
-                    **pipe.force.input_sources, **pipe.force.roll_assumption,
-                    "warnings": json.dumps([w.as_dict() for w in warnings]
-                                           + [w for w in [pipe.unverified_warning()] if w],
-                                           ensure_ascii=False),
-                    "gaps": json.dumps(pipe.gaps)}
+            meta = estimate_metadata(pipe, vehicle, source=str(log_path), log_attrs=attrs,
+                                     findings=[w.as_dict() for w in warnings])
             writer.metadata.update(meta)
         path, rows, channels = writer.path, writer.rows, len(writer.columns) - 1
     except (VestimError, ValueError, OSError) as exc:
@@ -482,6 +460,24 @@ def plot_cmd(
         typer.echo(str(f))
 
 
+def _vehicle_of(attrs: dict[str, str], source: Path) -> str:
+    """The vehicle an estimate names in its metadata: ``vehicle_file`` (a TOML path or a
+    built-in name), else a built-in ``vehicle`` name; an error saying to pass ``--vehicle``
+    when it names none that can be loaded."""
+    from vestim.io.vehicle import BUILTIN_VEHICLES
+
+    file, name = attrs.get("vehicle_file", ""), attrs.get("vehicle", "")
+    if file in BUILTIN_VEHICLES or (file and Path(file).is_file()):
+        return file
+    if not file and name in BUILTIN_VEHICLES:
+        return name
+    found = file and not file.startswith("none")
+    said = (f"names the vehicle file {file!r}, which is not found" if found else
+            f"names no vehicle file (vehicle {name!r})" if name else "names no vehicle")
+    raise ValueError(f"{source}: its metadata {said}; pass --vehicle FILE (or a built-in name: "
+                     f"{', '.join(BUILTIN_VEHICLES)})")
+
+
 @app.command("report")
 def report_cmd(
     estimate: Annotated[Path, typer.Argument(metavar="ESTIMATE", help="Log of estimates (a .parquet "
@@ -489,7 +485,9 @@ def report_cmd(
     reference: Annotated[Path | None, typer.Argument(
         metavar="[REFERENCE]", help="Log with ref_ channels (and omega_*, ax, ay).")] = None,
     out: Annotated[Path, typer.Option("--out", help="HTML file to write.")] = Path("report.html"),
-    vehicle: VehicleOpt = "hashemi_suv",
+    vehicle: Annotated[str | None, typer.Option(
+        "--vehicle", help="Vehicle TOML file or built-in name for the wheel radius (default: "
+        "the one the estimate's metadata names, vehicle_file).")] = None,
     title: Annotated[str | None, typer.Option(help="Page title.")] = None,
 ) -> None:
     """Write one self-contained interactive HTML report (plotly, works offline) of an estimate."""
@@ -499,10 +497,13 @@ def report_cmd(
 
     try:
         check_output_path(out, inputs=[estimate, reference], suffixes=(".html", ".htm"))
-        veh = load_vehicle(vehicle)
+        est = read_log(estimate)
+        veh = load_vehicle(vehicle if vehicle is not None else _vehicle_of(est.attrs, estimate))
         meta = {"estimate": str(estimate), "reference": str(reference) if reference else "none",
-                "vehicle": veh.name, "wheel_radius": f"{veh.body.wheel_radius:g} m"}
-        path = write_html_report(read_log(estimate), read_log(reference) if reference else None,
+                "vehicle": veh.name + ("" if vehicle is not None else " (from the estimate's "
+                                       "metadata)"),
+                "wheel_radius": f"{veh.body.wheel_radius:g} m"}
+        path = write_html_report(est, read_log(reference) if reference else None,
                                  out, wheel_radius=veh.body.wheel_radius, metadata=meta,
                                  title=title or f"vestim report: {estimate.name}")
     except (VestimError, ValueError, OSError) as exc:

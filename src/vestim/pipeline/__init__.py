@@ -874,18 +874,27 @@ def estimate(
     """Estimate forces and velocities for a whole log: the library form of ``vestim estimate``.
 
     Args:
-        log: a drive log (spec columns and SI units, ``../spec/log-format.md``) or the path of
-            a ``.csv`` / ``.parquet`` file; it is only read.
+        log: a drive log (spec columns and SI units, docs/format.md) or the path of a
+            ``.csv`` / ``.parquet`` file; it is only read.
         vehicle: a :class:`~vestim.io.vehicle.Vehicle`, a vehicle TOML file or a built-in name.
         config: the stages and their parameters (default: :class:`PipelineConfig`).
 
     Returns:
         One row per input sample: ``t`` and the estimate channels listed in this module's
-        docstring (SI units).
+        docstring (SI units); its ``attrs`` hold the metadata ``vestim estimate`` writes
+        (:func:`vestim.pipeline.provenance.estimate_metadata`, the input checks' warnings
+        included).
     """
     from vestim.io import load_vehicle, read_log
+    from vestim.io.sanity import find_problems
+    from vestim.pipeline.provenance import estimate_metadata
 
     veh = vehicle if isinstance(vehicle, Vehicle) else load_vehicle(vehicle)
     df = log if isinstance(log, pd.DataFrame) else read_log(
         log, require=["measured"], wheel_radius=veh.body.wheel_radius)
-    return Pipeline(veh, config).run(df)
+    pipe = Pipeline(veh, config)
+    out = pipe.run(df)
+    out.attrs = estimate_metadata(pipe, vehicle, source="DataFrame" if log is df else str(log),
+                                  findings=[f.as_dict() for f in find_problems(df, veh)],
+                                  log_attrs=df.attrs)
+    return out
