@@ -7,7 +7,7 @@ print one clear line and exit with status 2, never a traceback.
 from __future__ import annotations
 
 import time
-from collections.abc import Iterator
+from collections.abc import Iterator, Mapping
 from pathlib import Path
 from typing import TYPE_CHECKING, Annotated, Any
 
@@ -460,13 +460,13 @@ def plot_cmd(
         typer.echo(str(f))
 
 
-def _vehicle_of(attrs: dict[str, str], source: Path) -> str:
+def _vehicle_of(attrs: Mapping[Any, Any], source: Path) -> str:
     """The vehicle an estimate names in its metadata: ``vehicle_file`` (a TOML path or a
     built-in name), else a built-in ``vehicle`` name; an error saying to pass ``--vehicle``
     when it names none that can be loaded."""
     from vestim.io.vehicle import BUILTIN_VEHICLES
 
-    file, name = attrs.get("vehicle_file", ""), attrs.get("vehicle", "")
+    file, name = str(attrs.get("vehicle_file", "")), str(attrs.get("vehicle", ""))
     if file in BUILTIN_VEHICLES or (file and Path(file).is_file()):
         return file
     if not file and name in BUILTIN_VEHICLES:

@@ -894,7 +894,8 @@ def estimate(
         log, require=["measured"], wheel_radius=veh.body.wheel_radius)
     pipe = Pipeline(veh, config)
     out = pipe.run(df)
-    out.attrs = estimate_metadata(pipe, vehicle, source="DataFrame" if log is df else str(log),
-                                  findings=[f.as_dict() for f in find_problems(df, veh)],
-                                  log_attrs=df.attrs)
+    meta: dict[Any, Any] = estimate_metadata(
+        pipe, vehicle, source="DataFrame" if log is df else str(log), log_attrs=df.attrs,
+        findings=[f.as_dict() for f in find_problems(df, veh)])
+    out.attrs = meta
     return out

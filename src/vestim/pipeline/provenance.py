@@ -65,7 +65,7 @@ def vehicle_provenance(vehicle: Vehicle | str | Path) -> dict[str, str]:
     return {"vehicle": name, "vehicle_file": name, "vehicle_sha256": _sha256(data)}
 
 
-def _import_metadata(attrs: Mapping[str, Any]) -> dict[str, str]:
+def _import_metadata(attrs: Mapping[Any, Any]) -> dict[str, str]:
     """The input log's ``import.*`` metadata, with the map's SHA-256 when the map is readable."""
     out = {str(k): str(v) for k, v in attrs.items() if str(k).startswith(IMPORT_PREFIX)}
     map_path = Path(out.get(IMPORT_PREFIX + "map", ""))
@@ -76,7 +76,7 @@ def _import_metadata(attrs: Mapping[str, Any]) -> dict[str, str]:
 
 def estimate_metadata(pipe: Pipeline, vehicle: Vehicle | str | Path, *, source: str,
                       findings: Iterable[Mapping[str, Any]] = (),
-                      log_attrs: Mapping[str, Any] | None = None) -> dict[str, str]:
+                      log_attrs: Mapping[Any, Any] | None = None) -> dict[str, str]:
     """The metadata of an estimate that ``pipe`` has just made (after ``run`` or
     ``run_pieces``): the keys of the module docstring.
 
