@@ -98,3 +98,25 @@ def test_estimate_map_records_map_mounting_and_time_offset(tmp_path: Path,
     api = vestim.estimate(log, "hashemi_suv").attrs
     assert {k: v for k, v in api.items() if k.startswith("import.")} == \
         {k: v for k, v in meta.items() if k.startswith("import.")}
+
+
+def test_parquet_schema_gives_every_column_its_unit(tmp_path: Path, short_log: pd.DataFrame) -> None:
+    """Every column of a default estimate has a unit in the Parquet schema (field metadata
+    `unit`, from the one table vestim.io.channels.unit_of): v_x m/s, F_x N, σ of F_z N,
+    slip ratio and the flags "-", the roll gradient... none is missing; the file's own
+    metadata is still read back."""
+    import pyarrow.parquet as pq
+
+    src = write_log(short_log, tmp_path / "log.parquet")
+    out = tmp_path / "est.parquet"
+    assert runner.invoke(app, ["estimate", str(src), "--out", str(out)]).exit_code == 0
+    schema = pq.read_schema(out)
+    units = {f.name: (f.metadata or {}).get(b"unit", b"").decode() for f in schema}
+    assert "" not in units.values(), [k for k, v in units.items() if not v]
+    assert units["t"] == "s" and units["vx"] == "m/s" and units["fx_fl"] == "N"
+    assert units["sigma_fz_rr"] == "N" and units["slip_angle_fl"] == "rad"
+    assert units["valid_velocity"] == units["reason_force"] == units["health_ax"] == "-"
+    assert units["vxt_fl"] == "m/s" and units["bias_ax"] == "m/s²"
+    assert units["cornering_stiffness"] == "1/rad" and units["gnss_latency"] == "s"
+    assert all(units[c] == ch.unit_of(c) for c in units)
+    assert read_log(out).attrs["velocity"] == "fused"
