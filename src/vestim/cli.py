@@ -39,12 +39,22 @@ def _version(value: bool) -> None:
         raise typer.Exit()
 
 
+def _say(text: str) -> None:
+    console.print(rich.markup.escape(text))
+
+
 @app.callback()
 def _main(
+    ctx: typer.Context,
     version: Annotated[bool, typer.Option("--version", callback=_version, is_eager=True,
                                           help="Print the version and exit.")] = False,
 ) -> None:
     """Corner-based vehicle state and tire-force estimation."""
+    from vestim import _cache
+
+    # Every command: a Numba compilation still running after 1 s says so (first run of a
+    # code path on this machine); a run that loads its kernels from the cache is quiet.
+    ctx.with_resource(_cache.compile_notice(_say))
 
 VehicleOpt = Annotated[str, typer.Option("--vehicle", help="Vehicle TOML file or built-in name "
                                          "(hashemi_suv, compact_car).")]
@@ -84,16 +94,6 @@ class _Progress:
     def __exit__(self, *exc: object) -> None:
         if self._bar is not None:
             self._bar.stop()
-
-
-def _note_compiling() -> None:
-    """Say so when this run compiles the kernels (first run, or a new vestim/Numba)."""
-    from vestim import _cache
-
-    if _cache.is_cold():
-        console.print(rich.markup.escape(
-            "compiling vestim's kernels for this machine (first run only, about 10-60 s); "
-            f"later runs load them from {_cache.cache_dir()}"))
 
 
 def _fail(exc: Exception) -> typer.Exit:
@@ -280,7 +280,6 @@ def estimate_cmd(
                              veh, source=str(log_path))
         attrs = dict(head[0].attrs)  # the input's metadata: a channel-map import's import.*
         t0 = time.perf_counter()
-        _note_compiling()
         pipe = Pipeline(veh, cfg)
         with _Progress(f"estimating {log_path.name}") as progress, LogWriter(out, float32=True) as writer:
             for frame in pipe.run_pieces(itertools.chain(head, pieces), progress=progress,
@@ -328,7 +327,6 @@ def _estimate_stiffness(log_path: Path, out: Path, vehicle: str, particles: int,
         check_output_path(out, inputs=[log_path], suffixes=LOG_SUFFIXES)
         veh = load_vehicle(vehicle)
         log = read_log(log_path)
-        _note_compiling()
         t0 = time.perf_counter()
         est = estimate_stiffness(log, veh, particles=particles, seed=seed)
         path = write_log(est, out, metadata={"vehicle": veh.name, "method": "stiffness-pf",
