@@ -1,4 +1,4 @@
-"""Read, validate and write drive logs (``shared/spec/log-format.md``, version 1).
+"""Read, validate and write drive logs (docs/format.md, version 1).
 
 A log is a table with one row per sample: a strictly increasing, finite time
 column ``t`` in s and numeric channels in SI units named as in
