@@ -26,6 +26,7 @@ import pandas as pd
 
 from vestim.io.writers import write_mdf_can
 
+
 def measured(log: pd.DataFrame, seconds: float | None = None) -> pd.DataFrame:
     """The log's measured channels (no ``ref_*``), the first ``seconds`` s if given."""
     if seconds is not None:

@@ -16,7 +16,7 @@ from vestim.estimators.validity import reason_names
 from vestim.io import channels as ch
 from vestim.metrics import channel_family, coverage, score, significant
 
-__all__ = ["MAX_POINTS", "Logs", "Span", "band", "envelope", "invalid_spans", "peak_points"]
+__all__ = ["MAX_POINTS", "MAX_SPANS", "Logs", "Span", "band", "envelope", "invalid_spans", "peak_points"]
 
 MAX_POINTS = 2000
 """Most points drawn per line; a longer series is drawn as its min/max envelope (1000
@@ -85,22 +85,35 @@ Span = tuple[float, float, int]
 first row, ``t`` of the first valid row after it (the last ``t`` at the log's end), in s."""
 
 
+MAX_SPANS = 100
+"""Most "not valid" spans drawn per validity group: a flag that flickers more often is drawn
+at a coarser time resolution (every span a shape in each plot; 1000 of them in seven plots
+would add several MB to a report)."""
+
+
 def invalid_spans(t: np.ndarray, valid: np.ndarray, reason: np.ndarray,
-                  max_points: int = MAX_POINTS) -> list[Span]:
+                  max_points: int = MAX_POINTS, max_spans: int = MAX_SPANS) -> list[Span]:
     """The stretches where ``valid`` is 0, split where the ``reason`` mask changes.
 
     A log longer than ``max_points`` is first cut into ``max_points // 2`` time buckets (as
     :func:`envelope` cuts lines): a bucket is invalid when any of its rows is, with the
     bitwise OR of their masks, so no invalid row is lost and a flickering flag gives at most
-    one span per bucket.
+    one span per bucket. When that still gives more than ``max_spans`` spans, the buckets
+    are ``max_spans`` instead.
     """
     bad = np.asarray(valid, dtype=float) == 0.0
     mask = np.where(bad, np.nan_to_num(np.asarray(reason, dtype=float)), 0.0).astype(np.int64)
-    n = t.size
-    if n == 0 or not bad.any():
+    if t.size == 0 or not bad.any():
         return []
-    if n > max_points:
-        starts = np.linspace(0, n, max_points // 2, endpoint=False).astype(np.intp)
+    spans = _spans(t, bad, mask, None if t.size <= max_points else max_points // 2)
+    return spans if len(spans) <= max_spans else _spans(t, bad, mask, max_spans)
+
+
+def _spans(t: np.ndarray, bad: np.ndarray, mask: np.ndarray, buckets: int | None) -> list[Span]:
+    """:func:`invalid_spans` at the resolution of the samples (``buckets`` None) or of
+    ``buckets`` equal time buckets."""
+    if buckets is not None and buckets < t.size:
+        starts = np.linspace(0, t.size, buckets, endpoint=False).astype(np.intp)
         bad = np.logical_or.reduceat(bad, starts)
         mask = np.bitwise_or.reduceat(mask, starts)
         t_start, t_end = t[starts], np.append(t[starts[1:]], t[-1])

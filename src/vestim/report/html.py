@@ -16,13 +16,18 @@ when the estimate lacks its channels:
    when known) and the a_x–a_y (GG) diagram of the measured specific force;
 7. validity and health timelines of any ``valid_*`` and ``health_*`` columns.
 
+Every time plot of a validity group is shaded where its ``valid_<group>`` is 0, by reason
+(``reason_<group>`` decoded by :func:`vestim.estimators.validity.reason_names`); the score
+table and the panel titles give each channel's σ coverage (:func:`vestim.metrics.coverage`).
+
 Conventions are those of the PNG figures (:mod:`vestim.report.style`): one colour per
 corner everywhere, reference in black, one y range shared by (and zoom-linked across) the
 four corner panels of a quantity, an error strip (estimate − reference, same unit) under
-every value panel that has a reference, and the channel's NRMS/RMSE in its panel title.
+every value panel that has a reference, and the channel's NRMS (3 significant figures),
+RMSE and σ coverage in its panel title.
 Long logs are drawn as a min/max envelope of :data:`~vestim.report.data.MAX_POINTS` points
 per line (scatter plots keep the sample of largest magnitude per time bucket), stored as
-float32, so a 1 h log at 200 Hz gives a file of about 8 MB, of which 4.8 MB is plotly.js.
+float32, so a 1 h log at 200 Hz gives a file of about 9 MB, of which 4.8 MB is plotly.js.
 """
 
 from __future__ import annotations
@@ -97,9 +102,11 @@ _BAND_GROUP = {"speed": "velocity", "velocity_cg": "velocity", "velocity_vx": "v
                "force_fz": "force", "slip_ratio": "slip", "slip_angle": "slip"}
 """The validity group (``valid_<group>``, ``reason_<group>``) whose "not valid" spans are
 shaded behind each time plot."""
-_LABEL_MIN_SHARE = 0.03
-"""A "not valid" band at least this share of the log's duration wide is labelled in place
-with its reasons (every band is named in the legend and shaded in its reason's colour)."""
+_PLOT_PX = 1150
+"""Width in px of a one-column figure's plot area (a 2×2 grid: half of it each), the
+page's maximum width less the margins."""
+_CHAR_PX = 6.5
+"""Width in px of one character of a band label (10 px sans-serif)."""
 _CONFIG = {"responsive": True, "displaylogo": False}
 _TEMPLATE = "plotly_white"
 
@@ -186,13 +193,16 @@ class _Builder:
                legend: bool = True) -> None:
         """Shade every span where ``valid_<group>`` is 0 on the subplots ``cells`` ((x axis,
         y reference) pairs), coloured by its first reason (:data:`REASON_COLORS`), named in
-        the legend as "<group> not valid: <reasons>" and, when wide enough, labelled."""
+        the legend as "<group> not valid: <reasons>" and labelled in place where its width
+        on the page holds the label."""
         logs = self.logs
         spans = logs.invalid_spans(group)
         if not spans:
             return
         duration = float(logs.t_est[-1] - logs.t_est[0]) or 1.0
+        px_per_s = _PLOT_PX / len({x for x, _ in cells}) / duration
         shown: set[str] = set()
+        shapes: list[dict[str, Any]] = []
         for x0, x1, mask in spans:
             names = logs.reasons(mask)
             text = ", ".join(names) or "no reason given"
@@ -204,12 +214,14 @@ class _Builder:
                     "type": "rect", "xref": xref, "yref": yref, "x0": x0, "x1": x1, "y0": 0,
                     "y1": 1, "fillcolor": color, "opacity": INVALID_ALPHA, "line": {"width": 0},
                     "layer": "below", "name": name, "legendgroup": name, "showlegend": first}
-                if k == 0 and x1 - x0 >= _LABEL_MIN_SHARE * duration:
+                if k == 0 and (x1 - x0) * px_per_s >= _CHAR_PX * (len(text) + 2):
                     shape["label"] = {"text": text, "textposition": "top left",
                                       "font": {"size": 10, "color": "#444444"}}
-                fig.add_shape(**shape)
+                shapes.append(shape)
                 if first:
                     shown.add(name)
+        # one assignment: plotly re-validates every shape on each add_shape (quadratic)
+        fig.layout.shapes = (*fig.layout.shapes, *shapes)
 
     def _columns(self, fig: Any, cols: int) -> list[tuple[str, str]]:
         """(x axis, "paper") of each column of ``fig``: a band spans every row of a column."""
