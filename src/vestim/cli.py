@@ -287,7 +287,7 @@ def estimate_cmd(
                 head = []  # the checked pieces are not held once estimated
                 writer.write(frame)
             meta = estimate_metadata(pipe, vehicle, source=str(log_path), log_attrs=attrs,
-                                     findings=[w.as_dict() for w in warnings])
+                                     findings=[w.as_dict() for w in warnings], map_path=map_path)
             writer.metadata.update(meta)
         path, rows, channels = writer.path, writer.rows, len(writer.columns) - 1
     except (VestimError, ValueError, OSError) as exc:

@@ -16,7 +16,8 @@ Keys (every value a string; JSON where it is a list or an object):
   ``gaps``: the time gaps the filters restarted after, ``[[t_before, t_after], …]`` in s;
 - for a log imported through a channel map (``vestim import`` or ``estimate --map``), its
   ``import.*`` keys (docs/channel-map.md): the recording (``import.source``), the map
-  (``import.map``) and the map's SHA-256 (``import.map_sha256``), the source clock's time
+  (``import.map``) and, when imported in the same run, the map's SHA-256
+  (``import.map_sha256``), the source clock's time
   of the log's t = 0 (``import.t0_source_s``, s), the IMU mounting used
   (``import.mounting``), the rate and the import's gaps.
 """
@@ -65,18 +66,20 @@ def vehicle_provenance(vehicle: Vehicle | str | Path) -> dict[str, str]:
     return {"vehicle": name, "vehicle_file": name, "vehicle_sha256": _sha256(data)}
 
 
-def _import_metadata(attrs: Mapping[Any, Any]) -> dict[str, str]:
-    """The input log's ``import.*`` metadata, with the map's SHA-256 when the map is readable."""
+def _import_metadata(attrs: Mapping[Any, Any], map_path: Path | None) -> dict[str, str]:
+    """The input log's ``import.*`` metadata, with the SHA-256 of ``map_path``, the map the
+    log was imported through in this run (a map named by an earlier import may have
+    changed since, so it is not hashed)."""
     out = {str(k): str(v) for k, v in attrs.items() if str(k).startswith(IMPORT_PREFIX)}
-    map_path = Path(out.get(IMPORT_PREFIX + "map", ""))
-    if out.get(IMPORT_PREFIX + "map") and map_path.is_file():
-        out[IMPORT_PREFIX + "map_sha256"] = _sha256(map_path.read_bytes())
+    if map_path is not None:
+        out[IMPORT_PREFIX + "map_sha256"] = _sha256(Path(map_path).read_bytes())
     return out
 
 
 def estimate_metadata(pipe: Pipeline, vehicle: Vehicle | str | Path, *, source: str,
                       findings: Iterable[Mapping[str, Any]] = (),
-                      log_attrs: Mapping[Any, Any] | None = None) -> dict[str, str]:
+                      log_attrs: Mapping[Any, Any] | None = None,
+                      map_path: str | Path | None = None) -> dict[str, str]:
     """The metadata of an estimate that ``pipe`` has just made (after ``run`` or
     ``run_pieces``): the keys of the module docstring.
 
@@ -87,6 +90,8 @@ def estimate_metadata(pipe: Pipeline, vehicle: Vehicle | str | Path, *, source: 
         source: the estimated log's path, or a word for an in-memory log.
         findings: the input checks' findings (``Finding.as_dict()`` records).
         log_attrs: the input log's metadata (``df.attrs``); its ``import.*`` keys are kept.
+        map_path: the channel map the log was imported through in this run (``estimate
+            --map``), hashed into ``import.map_sha256``.
     """
     from vestim import __version__
 
@@ -101,5 +106,5 @@ def estimate_metadata(pipe: Pipeline, vehicle: Vehicle | str | Path, *, source: 
         "warnings": json.dumps([*map(dict, findings), *([unverified] if unverified else [])],
                                ensure_ascii=False),
         "gaps": json.dumps(pipe.gaps),
-        **_import_metadata(log_attrs or {}),
+        **_import_metadata(log_attrs or {}, None if map_path is None else Path(map_path)),
     }
