@@ -26,9 +26,9 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
+import vestim
 from vestim.io import load_vehicle, read_log
 from vestim.io.files import atomic_path
-from vestim.pipeline import Pipeline
 from vestim.report.html import write_html_report
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -44,11 +44,11 @@ VIEWPORT = {"width": 1400, "height": 1000}
 
 
 def _estimate() -> tuple[pd.DataFrame, pd.DataFrame, float]:
+    """The default estimate with the metadata `vestim estimate` writes (vestim.estimate)."""
     veh = load_vehicle(VEHICLE)
     log = read_log(LOG)
     measured = log[[c for c in log.columns if not c.startswith("ref_")]]
-    est = Pipeline(veh).run(measured)
-    est.attrs = {"vehicle": veh.name, "source": LOG.name, "velocity": "fused", "force": "ukf"}
+    est = vestim.estimate(measured, VEHICLE)
     return est, log, veh.body.wheel_radius
 
 

@@ -1,19 +1,29 @@
-"""Each pipeline stage's share of the time (issue 12), in ns per corner-step, against a bare
-compiled 1-state UKF over four corners.
+"""Where the default pipeline's time goes (issue 27), in ns per corner-step, against a bare
+compiled 1-state UKF over four corners measured in the same process.
 
 Run:  .venv/bin/python benchmarks/stage_times.py [--samples 720000]
 
-The default pipeline runs one hour of 200 Hz (the simulator's dlc_snow tiled) with every
-stage's entry point wrapped by a timer; "glue" is the rest of ``Pipeline.run`` (input
-bundling, the kinematics between stages, output framing). Best of 3, one process; the
-wrappers add ~1 µs per call, i.e. nothing at 65 536 samples per call.
+One hour of 200 Hz (the simulator's dlc_snow tiled), best of 3. Every stage runs inside the
+one compiled composition (``vestim.pipeline.rows.pipeline_rows``), so a stage's cost is read
+by difference between configurations of that composition on the same log, each the same
+call with one stage swapped for a cheaper one:
+
+- longitudinal force UKF: force ``ukf`` against ``naive`` (a finite difference);
+- reference filter: velocity ``reference`` against ``kinematic`` (an integrator);
+- corner observers and their fusion: velocity ``kf`` against ``reference``;
+- the fused filter's second reference filter: ``fused`` against ``kf`` (on dlc_snow the
+  corners rarely all slip, so this is mostly the copy of the plain filter's state);
+- the rest of the composition (attitude, normal loads, lateral force UKF, the cornering
+  stiffness, GNSS calibration, friction, validity, uncertainty): ``kinematic`` with force
+  ``naive``;
+- the health stages and the input/output framing of ``Pipeline.run`` around the call:
+  measured directly.
 """
 
 from __future__ import annotations
 
 import argparse
 import time
-from collections import defaultdict
 from collections.abc import Callable
 from typing import Any
 
@@ -21,16 +31,11 @@ import numpy as np
 import pandas as pd
 from numba import njit
 
-import vestim.pipeline as pl
+from vestim.estimators.health import imu_health_kernel, wheel_health_kernel
 from vestim.filters.ukf import sigma_points, ukf_weights
 from vestim.io import load_vehicle
-from vestim.pipeline import Pipeline
+from vestim.pipeline import Pipeline, PipelineConfig
 from vestim.sim import get_maneuver, simulate
-
-STAGE_FUNCTIONS = ("corrected_log", "inputs_from_log", "wheel_health_kernel", "imu_health_kernel",
-                   "axle_slip_angles", "gnss_calibration", "uncertainty", "friction_potential",
-                   "validity")
-"""Module-level functions of vestim.pipeline timed as stages (those present)."""
 
 
 @njit(cache=True, error_model="numpy")
@@ -61,14 +66,14 @@ def bare_ukf(z: np.ndarray, q: float, r: float, wm: np.ndarray, wc: np.ndarray, 
             out[k, c] = x[c]
 
 
-def _timed(fn: Callable[..., Any], acc: dict[str, float], name: str) -> Callable[..., Any]:
-    def wrapper(*args: Any, **kwargs: Any) -> Any:
+def best_of(fn: Callable[[], Any], repeats: int = 3) -> float:
+    """The shortest of ``repeats`` wall times of ``fn()``, s."""
+    best = float("inf")
+    for _ in range(repeats):
         t0 = time.perf_counter()
-        try:
-            return fn(*args, **kwargs)
-        finally:
-            acc[name] += time.perf_counter() - t0
-    return wrapper
+        fn()
+        best = min(best, time.perf_counter() - t0)
+    return best
 
 
 def main() -> None:
@@ -80,54 +85,66 @@ def main() -> None:
     log = log.drop(columns=[c for c in log.columns if c.startswith("ref_")])
     big = pd.concat([log] * (n // len(log) + 1), ignore_index=True).iloc[:n].copy()
     big["t"] = np.arange(n) * 0.005
+    steps = 4.0 * n  # corner-steps
 
+    z = np.ascontiguousarray(big[["omega_fl", "omega_fr", "omega_rl", "omega_rr"]].to_numpy())
     wm, wc, tau = ukf_weights(1)
-    z = np.ascontiguousarray(big[[f"omega_{c}" for c in ("fl", "fr", "rl", "rr")]].to_numpy())
     out = np.empty_like(z)
-    bare = float("inf")
-    for _ in range(4):
-        x, P = z[0].copy(), np.ones(4)
-        t0 = time.perf_counter()
-        bare_ukf(z, 1e-3, 0.1, wm, wc, tau, x, P, out)
-        bare = min(bare, time.perf_counter() - t0)
-    bare_ns = bare / (4 * n) * 1e9
+
+    def bare() -> None:
+        bare_ukf(z, 0.1, 0.2, wm, wc, tau, np.zeros(4), np.ones(4), out)
+
+    bare()
+    t_bare = best_of(bare) / steps * 1e9
+
+    times: dict[str, float] = {}
+    for name, cfg in (("default", PipelineConfig()),
+                      ("fused", PipelineConfig(velocity="fused")),
+                      ("kf", PipelineConfig(velocity="kf")),
+                      ("reference", PipelineConfig(velocity="reference")),
+                      ("kinematic", PipelineConfig(velocity="kinematic")),
+                      ("kinematic+naive", PipelineConfig(velocity="kinematic", force="naive"))):
+        pipe = Pipeline(veh, cfg)
+        pipe.run(big.iloc[:2000])  # compile
+        times[name] = best_of(lambda pipe=pipe: pipe.run(big)) / steps * 1e9
 
     pipe = Pipeline(veh)
-    pipe.run(log)  # compile / load the kernels
-    best: dict[str, float] | None = None
-    total = float("inf")
-    for _ in range(3):
-        acc: dict[str, float] = defaultdict(float)
-        saved = {name: getattr(pl, name) for name in STAGE_FUNCTIONS if hasattr(pl, name)}
-        for name, fn in saved.items():
-            setattr(pl, name, _timed(fn, acc, name))
-        stages = {"force": pipe.force, "reference filter": pipe.reference,
-                  "fused filter": pipe.fused, "corner observers": pipe.corner}
-        methods = {label: obj.advance for label, obj in stages.items() if obj is not None}
-        for label, obj in stages.items():
-            if obj is not None:
-                obj.advance = _timed(obj.advance, acc, label)  # type: ignore[method-assign]
-        try:
-            t0 = time.perf_counter()
-            pipe.run(big)
-            elapsed = time.perf_counter() - t0
-        finally:
-            for name, fn in saved.items():
-                setattr(pl, name, fn)
-            for label, obj in stages.items():
-                if obj is not None:
-                    obj.advance = methods[label]  # type: ignore[method-assign]
-        if elapsed < total:
-            total, best = elapsed, dict(acc)
-    assert best is not None
-    best["glue (the rest of run)"] = total - sum(best.values())
-    print(f"default pipeline, {n} samples: {total:.3f} s = {total / (4 * n) * 1e9:.0f} ns per "
-          f"corner-step; bare 1-state UKF {bare_ns:.1f} ns per corner-step")
-    print("| stage | s | share | ns per corner-step | × bare UKF |")
-    print("|---|---|---|---|---|")
-    for name, sec in sorted(best.items(), key=lambda kv: -kv[1]):
-        ns = sec / (4 * n) * 1e9
-        print(f"| {name} | {sec:.3f} | {sec / total:.0%} | {ns:.0f} | {ns / bare_ns:.0f} |")
+    u_omega = np.ascontiguousarray(z)
+    t_ = big["t"].to_numpy()
+    delta = np.zeros((n, 4))
+    delta[:, 0] = big["delta_fl"].to_numpy()
+    delta[:, 1] = big["delta_fr"].to_numpy()
+    omega_out, health = np.empty_like(u_omega), np.empty_like(u_omega)
+    imu, imu_health = np.empty((3, n)), np.empty((n, 3))
+    from vestim.estimators.health import new_imu_state
+    from vestim.estimators.health import new_state as new_health_state
+
+    def health_stages() -> None:
+        wheel_health_kernel(pipe._health_prm, new_health_state(), t_, u_omega, omega_out, health)
+        imu_health_kernel(pipe._imu_prm, new_imu_state(), t_, big["ax"].to_numpy(),
+                          big["ay"].to_numpy(), big["yaw_rate"].to_numpy(), omega_out, delta,
+                          imu[0], imu[1], imu[2], imu_health)
+
+    health_stages()
+    t_health = best_of(health_stages) / steps * 1e9
+
+    rows = [
+        ("longitudinal force UKF (ukf − naive)",
+         times["kinematic"] - times["kinematic+naive"]),
+        ("reference filter (reference − kinematic)", times["reference"] - times["kinematic"]),
+        ("corner observers + fusion (kf − reference)", times["kf"] - times["reference"]),
+        ("fused filter (fused − kf)", times["fused"] - times["kf"]),
+        ("health stages (wheel, IMU)", t_health),
+        ("the rest (kinematic + naive, less the health stages)",
+         times["kinematic+naive"] - t_health),
+    ]
+    total = times["default"]
+    print(f"default Pipeline.run, {n} samples: {total * steps / 1e9:.3f} s = {total:.0f} ns "
+          f"per corner-step = {total / t_bare:.0f}x the bare 1-state UKF ({t_bare:.1f} ns)")
+    print("| stage | ns per corner-step | share | × bare UKF |")
+    print("|---|---|---|---|")
+    for name, ns in rows:
+        print(f"| {name} | {ns:.0f} | {100 * ns / total:.0f} % | {ns / t_bare:.1f} |")
 
 
 if __name__ == "__main__":

@@ -1,8 +1,10 @@
 """Command-line interface: listing, simulating to a file, clear errors."""
 
+import threading
+
 from typer.testing import CliRunner
 
-from vestim.cli import app
+from vestim.cli import _say, app
 from vestim.io import read_log
 from vestim.io.channels import REFERENCE
 from vestim.sim import maneuver_names
@@ -146,25 +148,69 @@ def test_output_extension_is_checked_before_the_work(tmp_path, monkeypatch):
     assert "unsupported extension '.xlsx'" in result.output
 
 
-def test_first_run_says_it_compiles(tmp_path, monkeypatch):
+def _slow_compile(said: threading.Event) -> None:
+    """A Numba compilation (its compile events) that lasts until the notice was given: the
+    slow first call, made deterministic (no sleep; the 30 s is only a guard)."""
+    from numba.core import event
+
+    event.start_event("numba:compile")
+    try:
+        assert said.wait(30.0), "no compile notice"
+    finally:
+        event.end_event("numba:compile")
+
+
+def test_compile_notice_says_so_once_while_compiling():
+    """A compilation still running after `after_s` is announced once (a nested one and a
+    second one are not announced again); one that ends first, or a block without any
+    compilation (kernels loaded from the cache), says nothing."""
+    from numba.core import event
+
     from vestim import _cache
 
-    monkeypatch.setattr(_cache, "is_cold", lambda: True)
-    src = _short_log(tmp_path)
-    result = runner.invoke(app, ["estimate", "--vehicle", "hashemi_suv",
-                                 str(src), "--out", str(tmp_path / "est.parquet")])
+    said = threading.Event()
+    messages: list[str] = []
+
+    def say(text: str) -> None:
+        messages.append(text)
+        said.set()
+
+    with _cache.compile_notice(say, after_s=0.01):
+        event.start_event("numba:compile")  # outer compile; the slow one nests inside it
+        _slow_compile(said)
+        event.end_event("numba:compile")
+        _slow_compile(said)  # already said: returns at once
+    assert messages == [_cache.notice_text()]
+    assert "compiling vestim's kernels for this code path" in messages[0]
+    assert str(_cache.cache_dir()) in messages[0]
+    quiet: list[str] = []
+    with _cache.compile_notice(quiet.append, after_s=3600.0):
+        event.start_event("numba:compile")
+        event.end_event("numba:compile")  # done long before the timer
+    with _cache.compile_notice(quiet.append, after_s=0.0):
+        pass  # nothing compiled
+    assert quiet == []
+
+
+def test_cli_announces_a_slow_compilation(monkeypatch):
+    """Any command: a kernel call whose compilation takes more than 1 s the first time
+    (here `vestim maneuvers` with an injected one) prints the notice on stderr, and the
+    command's own output follows."""
+    import vestim.sim
+
+    said = threading.Event()
+    real = vestim.sim.maneuver_names
+    monkeypatch.setattr("vestim.cli._say", lambda text: (_say(text), said.set()))
+
+    def names() -> list[str]:
+        _slow_compile(said)
+        return real()
+
+    monkeypatch.setattr(vestim.sim, "maneuver_names", names)
+    result = runner.invoke(app, ["maneuvers"])
     assert result.exit_code == 0, result.output
-    assert "compiling vestim's kernels" in result.output
-
-
-def test_cache_is_cold_until_numba_writes_an_index(tmp_path, monkeypatch):
-    from vestim import _cache
-
-    monkeypatch.setenv("NUMBA_CACHE_DIR", str(tmp_path / "cache"))
-    assert _cache.is_cold()
-    (tmp_path / "cache" / "x").mkdir(parents=True)
-    (tmp_path / "cache" / "x" / "k.nbi").write_bytes(b"")
-    assert not _cache.is_cold()
+    assert "compiling vestim's kernels for this code path" in result.output
+    assert "step_steer" in result.output
 
 
 def test_estimate_metadata_says_how_it_was_made(tmp_path):

@@ -284,7 +284,7 @@ def test_markdown_and_json_shapes(sim_log: pd.DataFrame) -> None:
     assert table_lines[0].startswith("| channel | unit | NRMS [%] |")
     assert all(ln.count("|") == 9 for ln in table_lines)
     pitch_line = next(ln for ln in table_lines if ln.startswith("| pitch "))
-    assert "| 10.00* |" in pitch_line
+    assert "| 10.0* |" in pitch_line  # 3 significant figures (metrics.significant)
     assert "floor was the denominator" in lines[-1]
 
     records = json.loads(to_json(table))
@@ -354,3 +354,32 @@ def test_coverage_of_a_gaussian_error_is_68_and_95_percent():
     assert table.loc["vy", "within_1sigma"] == 0.0
     assert table.loc["vy", "within_2sigma"] == 1.0
     assert table.loc["vx", "samples"] == n
+
+
+def test_significant_figures():
+    """NRMS is written to 3 significant figures, never as 0.00 or in exponent form."""
+    from vestim.metrics import significant
+
+    assert significant(0.004) == "0.00400"  # 0.004 %: two decimals would print 0.00
+    assert significant(0.01234) == "0.0123"
+    assert significant(5.0) == "5.00"
+    assert significant(12.345) == "12.3"
+    assert significant(1234.6) == "1235"
+    assert significant(-0.5) == "-0.500"
+    assert significant(0.0) == "0" and significant(math.nan) == "–"
+    assert significant(math.inf) == "inf"
+
+
+def test_coverage_of_named_channels():
+    """channels= picks and orders the rows; a channel without a σ or a reference is an
+    error that names it."""
+    from vestim.metrics import coverage
+
+    t = np.arange(5) * 0.1
+    est = pd.DataFrame({"t": t, "vx": t, "sigma_vx": 1.0, "vy": t, "sigma_vy": 1.0, "fx_fl": t})
+    ref = pd.DataFrame({"t": t, "ref_vx": t + 0.5, "ref_vy": t + 1.5, "ref_fx_fl": t})
+    table = coverage(est, ref, channels=["vy", "vx"])
+    assert list(table["channel"]) == ["vy", "vx"]
+    assert list(table["within_1sigma"]) == [0.0, 1.0] and list(table["within_2sigma"]) == [1.0, 1.0]
+    with pytest.raises(LogFormatError, match="'fx_fl' needs a sigma_fx_fl column"):
+        coverage(est, ref, channels=["fx_fl"])

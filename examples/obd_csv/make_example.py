@@ -7,10 +7,13 @@ degrees, yaw rate in deg/s, lateral acceleration in g — and no longitudinal ac
 
 Usage::
 
-    python examples/obd_csv/make_example.py [--log X.parquet] [--radius R] [--out DIR]
+    python examples/obd_csv/make_example.py --log X.parquet [--radius R] [--out DIR]
 
-The defaults take ``/work/shared/crossplant/data/x05_sine_steer_dry_rwd.parquet`` (sine
-steer on dry asphalt, vehicle2.toml, R = 0.344 m), every second sample (100 Hz).
+The committed ``obd.csv`` was made from the crossplant data set's log
+``x05_sine_steer_dry_rwd.parquet`` (sine steer on dry asphalt, its ``vehicle2.toml``, committed
+here as ``vehicle.toml``, R = 0.344 m), every second sample (100 Hz). Any drive log works,
+e.g. ``vestim simulate step_steer --out drive.parquet`` and ``--radius 0.33`` (hashemi_suv)
+with the map's radius changed to match.
 """
 
 from __future__ import annotations
@@ -21,8 +24,6 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-CROSSPLANT = Path(__file__).resolve().parents[2].parent / "shared" / "crossplant" / "data"
-DEFAULT_LOG = CROSSPLANT / "x05_sine_steer_dry_rwd.parquet"
 DEFAULT_RADIUS = 0.344
 """m; vehicle2.toml's wheel_radius, the radius the map's wheel-speed expression divides by."""
 STANDARD_GRAVITY = 9.80665
@@ -55,9 +56,9 @@ def make_obd_frame(si: pd.DataFrame, *, wheel_radius: float = DEFAULT_RADIUS) ->
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
-    parser.add_argument("--log", type=Path, default=DEFAULT_LOG)
+    parser.add_argument("--log", type=Path, required=True, help="spec log (.parquet)")
     parser.add_argument("--radius", type=float, default=DEFAULT_RADIUS, help="m")
-    parser.add_argument("--out", type=Path, default=Path(__file__).parent)
+    parser.add_argument("--out", type=Path, default=Path("."), help="output folder")
     args = parser.parse_args()
     frame = make_obd_frame(si_copy(pd.read_parquet(args.log)), wheel_radius=args.radius)
     args.out.mkdir(parents=True, exist_ok=True)

@@ -1,8 +1,9 @@
-"""Make the ROS 2 bag example from a crossplant log.
+"""Make the ROS 2 bag example from a drive log (e.g. one `vestim simulate` wrote).
 
-Writes two ROS 2 bags of the same drive, ``x05_bag_db3/`` (sqlite3 storage) and
-``x05_bag_mcap/`` (MCAP storage), each a folder with ``metadata.yaml`` as ``ros2 bag record``
-makes it. Topics, SI units, REP-103 axes (x forward, y left, z up = ISO 8855):
+Writes two ROS 2 bags of the same drive, ``<stem>_bag_db3/`` (sqlite3 storage) and
+``<stem>_bag_mcap/`` (MCAP storage; ``<stem>``: the log's file name without its suffix), each a
+folder with ``metadata.yaml`` as ``ros2 bag record`` makes it. Topics, SI units, REP-103 axes
+(x forward, y left, z up = ISO 8855):
 
 - ``/imu``           sensor_msgs/msg/Imu: linear_acceleration, angular_velocity, header.stamp
 - ``/wheel_speeds``  std_msgs/msg/Float64MultiArray: data = [fl, fr, rl, rr] rad/s (no header)
@@ -15,12 +16,11 @@ for any type. ``map.toml`` (next to this script) reads either bag back into a ve
 
 Usage::
 
-    python examples/ros2_bag/make_example.py [--log X.parquet] [--seconds S] [--out DIR]
+    vestim simulate step_steer --out drive.parquet
+    python examples/ros2_bag/make_example.py --log drive.parquet [--seconds S] [--out DIR]
         [--latency S]
 
-The defaults take ``/work/shared/crossplant/data/x05_sine_steer_dry_rwd.parquet`` (sine steer
-on dry asphalt, vehicle2.toml, 10 s) and write into this folder, replacing earlier bags
-there; the bags are not committed.
+``--out`` defaults to the current folder; earlier bags of the same name there are replaced.
 """
 
 from __future__ import annotations
@@ -33,9 +33,6 @@ import pandas as pd
 
 from vestim.io.writers import write_ros2_bag
 
-CROSSPLANT = Path(__file__).resolve().parents[2].parent / "shared" / "crossplant" / "data"
-DEFAULT_LOG = CROSSPLANT / "x05_sine_steer_dry_rwd.parquet"
-
 
 def measured(log: pd.DataFrame, seconds: float | None = None) -> pd.DataFrame:
     """The log's measured channels (no ``ref_*``), the first ``seconds`` s if given."""
@@ -46,16 +43,17 @@ def measured(log: pd.DataFrame, seconds: float | None = None) -> pd.DataFrame:
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
-    parser.add_argument("--log", type=Path, default=DEFAULT_LOG, help="spec log (.parquet/.csv)")
+    parser.add_argument("--log", type=Path, required=True,
+                        help="spec log (.parquet/.csv), e.g. from `vestim simulate`")
     parser.add_argument("--seconds", type=float, default=None, help="keep the first S seconds")
-    parser.add_argument("--out", type=Path, default=Path(__file__).parent)
+    parser.add_argument("--out", type=Path, default=Path("."), help="output folder")
     parser.add_argument("--latency", type=float, default=0.0,
                         help="s from each sample to its recording (the bag's receive time)")
     args = parser.parse_args()
     log = pd.read_parquet(args.log) if args.log.suffix != ".csv" else pd.read_csv(args.log)
     log = measured(log, args.seconds)
     for storage, suffix in (("sqlite3", "db3"), ("mcap", "mcap")):
-        bag = args.out / f"{args.log.stem[:3]}_bag_{suffix}"
+        bag = args.out / f"{args.log.stem}_bag_{suffix}"
         if bag.exists() and (bag / "metadata.yaml").is_file():
             shutil.rmtree(bag)  # an earlier run's bag (never a folder that is not a bag)
         write_ros2_bag(log, bag, storage=storage, receive_latency=args.latency)

@@ -11,9 +11,15 @@ from __future__ import annotations
 
 import os
 import sys
+import threading
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
 from pathlib import Path
+from typing import Any
 
 ENV = "NUMBA_CACHE_DIR"
+NOTICE_AFTER_S = 1.0
+"""A compilation still running after this many seconds is announced (:func:`compile_notice`)."""
 
 
 def cache_dir() -> Path:
@@ -34,7 +40,72 @@ def configure() -> Path:
     return path
 
 
-def is_cold() -> bool:
-    """True when no vestim kernel is in the cache yet, i.e. the next run compiles them."""
-    path = cache_dir()
-    return not path.is_dir() or next(path.rglob("*.nbi"), None) is None
+def notice_text() -> str:
+    """What :func:`compile_notice` says."""
+    return ("compiling vestim's kernels for this code path (once per machine and code path, "
+            f"about 5-60 s); later runs load them from {cache_dir()}")
+
+
+class _CompileWatch:
+    """Numba compile-event listener: a compilation that is still running ``after_s`` after
+    it started calls ``say`` (once). Nested compilations (a kernel compiling the functions
+    it calls) count as one; loading a kernel from the cache is no compilation."""
+
+    def __init__(self, say: Callable[[str], None], after_s: float) -> None:
+        self._say, self._after_s = say, after_s
+        self._lock = threading.Lock()
+        self._depth = 0
+        self._timer: threading.Timer | None = None
+        self.said = False
+
+    def on_start(self, event: Any) -> None:
+        with self._lock:
+            self._depth += 1
+            if self._depth == 1 and not self.said:
+                self._timer = threading.Timer(self._after_s, self._fire)
+                self._timer.daemon = True
+                self._timer.start()
+
+    def on_end(self, event: Any) -> None:
+        with self._lock:
+            self._depth = max(self._depth - 1, 0)
+            if self._depth == 0:
+                self.cancel()
+
+    def cancel(self) -> None:
+        if self._timer is not None:
+            self._timer.cancel()
+            self._timer = None
+
+    def _fire(self) -> None:
+        with self._lock:
+            if self._depth == 0 or self.said:
+                return
+            self.said = True
+        self._say(notice_text())
+
+
+@contextmanager
+def compile_notice(say: Callable[[str], None], after_s: float = NOTICE_AFTER_S) -> Iterator[None]:
+    """Within the block, call ``say(notice_text())`` once when a Numba compilation has run
+    for ``after_s`` s: every code path's first run on a machine (a new kernel, a new
+    argument type, a new vestim or Numba) is announced, and a run that loads every kernel
+    from the cache says nothing. ``say`` runs on a timer thread."""
+    from numba.core import event
+
+    class Listener(event.Listener):
+        def __init__(self, watch: _CompileWatch) -> None:
+            self.watch = watch
+
+        def on_start(self, ev: event.Event) -> None:
+            self.watch.on_start(ev)
+
+        def on_end(self, ev: event.Event) -> None:
+            self.watch.on_end(ev)
+
+    watch = _CompileWatch(say, after_s)
+    try:
+        with event.install_listener("numba:compile", Listener(watch)):
+            yield
+    finally:
+        watch.cancel()

@@ -88,6 +88,7 @@ from vestim.io.sanity import gate
 from vestim.io.vehicle import BUILTIN_VEHICLES, Vehicle
 from vestim.metrics import score
 from vestim.pipeline import Pipeline, PipelineConfig
+from vestim.pipeline.provenance import estimate_metadata
 
 __all__ = [
     "AUTO",
@@ -630,11 +631,10 @@ def _run_one(job: _Job) -> dict[str, Any]:
         row.update(status="ok", output=job.out, samples=len(est), **_scores(est, log),
                    **_validity(est))
         row["wall_s"] = time.perf_counter() - t0
-        cfg = job.config
-        meta = {"vehicle": veh.name, "force": cfg.force, "normal": cfg.normal,
-                "velocity": cfg.velocity, "fusion": cfg.fusion, "source": job.log,
-                **pipe.force.input_sources, **imported, "batch_key": key,
-                **checked.metadata([w for w in [pipe.unverified_warning()] if w]),
+        meta = {**estimate_metadata(pipe, job.vehicle, source=job.log, checked=checked,
+                                    log_attrs={**log.attrs, **imported},
+                                    map_path=job.channel_map),
+                "batch_key": key,
                 "batch_row": json.dumps({k: v for k, v in row.items()
                                          if k not in ("log", "output", "status", "error")})}
         write_log(est, out, metadata=meta, float32=True)  # as `vestim estimate` writes

@@ -7,7 +7,7 @@ print one clear line and exit with status 2, never a traceback.
 from __future__ import annotations
 
 import time
-from collections.abc import Iterator
+from collections.abc import Iterator, Mapping
 from pathlib import Path
 from typing import TYPE_CHECKING, Annotated, Any
 
@@ -39,12 +39,22 @@ def _version(value: bool) -> None:
         raise typer.Exit()
 
 
+def _say(text: str) -> None:
+    console.print(rich.markup.escape(text))
+
+
 @app.callback()
 def _main(
+    ctx: typer.Context,
     version: Annotated[bool, typer.Option("--version", callback=_version, is_eager=True,
                                           help="Print the version and exit.")] = False,
 ) -> None:
     """Corner-based vehicle state and tire-force estimation."""
+    from vestim import _cache
+
+    # Every command: a Numba compilation still running after 1 s says so (first run of a
+    # code path on this machine); a run that loads its kernels from the cache is quiet.
+    ctx.with_resource(_cache.compile_notice(_say))
 
 BUILTINS = "hashemi_suv, compact_car"
 """The built-in vehicles' names (vestim.io.vehicle.BUILTIN_VEHICLES; written out here so that
@@ -109,33 +119,6 @@ class _Progress:
     def __exit__(self, *exc: object) -> None:
         if self._bar is not None:
             self._bar.stop()
-
-
-def _note_compiling() -> None:
-    """Say so when this run compiles the kernels (first run, or a new vestim/Numba)."""
-    from vestim import _cache
-
-    if _cache.is_cold():
-        console.print(rich.markup.escape(
-            "compiling vestim's kernels for this machine (first run only, about 10-60 s); "
-            f"later runs load them from {_cache.cache_dir()}"))
-
-
-def _provenance(vehicle: str, config: Any) -> dict[str, str]:
-    """Output metadata that says how an estimate was made: vestim's version, the full
-    configuration, and a SHA-256 of the vehicle file's bytes (of the built-in's, by name)."""
-    import dataclasses
-    import hashlib
-    import json
-    from importlib import resources
-
-    from vestim import __version__
-
-    p = Path(vehicle)
-    data = (p.read_bytes() if p.is_file() else
-            (resources.files("vestim") / "data" / "vehicles" / f"{vehicle}.toml").read_bytes())
-    return {"vestim_version": __version__, "vehicle_sha256": hashlib.sha256(data).hexdigest(),
-            "config": json.dumps(dataclasses.asdict(config), default=str, sort_keys=True)}
 
 
 def _fail(exc: Exception) -> typer.Exit:
@@ -285,7 +268,6 @@ def estimate_cmd(
         raise _fail(ValueError(f"method {method!r}: use pipeline or stiffness-pf"))
     import dataclasses
     import itertools
-    import json
 
     import pandas as pd
 
@@ -293,6 +275,7 @@ def estimate_cmd(
     from vestim.io.files import check_output_path
     from vestim.io.sanity import GATE_ROWS, gate
     from vestim.pipeline import Pipeline, PipelineConfig
+    from vestim.pipeline.provenance import estimate_metadata
 
     try:
         check_output_path(out, inputs=[log_path, map_path, config, gains], suffixes=LOG_SUFFIXES)
@@ -322,20 +305,16 @@ def estimate_cmd(
         checked = gate(head[0] if len(head) == 1 else pd.concat(head, ignore_index=True),
                        veh, source=str(log_path))
         warnings = checked.warnings
+        attrs = dict(head[0].attrs)  # the input's metadata: a channel-map import's import.*
         t0 = time.perf_counter()
-        _note_compiling()
         pipe = Pipeline(veh, cfg)
         with _Progress(f"estimating {log_path.name}") as progress, LogWriter(out, float32=True) as writer:
             for frame in pipe.run_pieces(itertools.chain(head, pieces), progress=progress,
                                          total=total):
                 head = []  # the checked pieces are not held once estimated
                 writer.write(frame)
-            meta = {"vehicle": veh.name, "force": cfg.force, "normal": cfg.normal,
-                    "velocity": cfg.velocity, "fusion": cfg.fusion, "source": str(log_path),
-                    **_provenance(vehicle, cfg),
-                    **pipe.force.input_sources, **pipe.force.roll_assumption,
-                    **checked.metadata([w for w in [pipe.unverified_warning()] if w]),
-                    "gaps": json.dumps(pipe.gaps)}
+            meta = estimate_metadata(pipe, vehicle, source=str(log_path), log_attrs=attrs,
+                                     checked=checked, map_path=map_path)
             writer.metadata.update(meta)
         path, rows, channels = writer.path, writer.rows, len(writer.columns) - 1
     except (VestimError, ValueError, OSError) as exc:
@@ -377,7 +356,6 @@ def _estimate_stiffness(log_path: Path, out: Path, vehicle: str, particles: int,
         veh = load_vehicle(vehicle)
         log = read_log(log_path)
         checked = gate(log, veh, source=str(log_path))  # the input gate of the pipeline path
-        _note_compiling()
         t0 = time.perf_counter()
         est = estimate_stiffness(log, veh, particles=particles, seed=seed)
         path = write_log(est, out, metadata={"vehicle": veh.name, "method": "stiffness-pf",
@@ -555,6 +533,24 @@ def plot_cmd(
         typer.echo(str(f))
 
 
+def _vehicle_of(attrs: Mapping[Any, Any], source: Path) -> str:
+    """The vehicle an estimate names in its metadata: ``vehicle_file`` (a TOML path or a
+    built-in name), else a built-in ``vehicle`` name; an error saying to pass ``--vehicle``
+    when it names none that can be loaded."""
+    from vestim.io.vehicle import BUILTIN_VEHICLES
+
+    file, name = str(attrs.get("vehicle_file", "")), str(attrs.get("vehicle", ""))
+    if file in BUILTIN_VEHICLES or (file and Path(file).is_file()):
+        return file
+    if not file and name in BUILTIN_VEHICLES:
+        return name
+    found = file and not file.startswith("none")
+    said = (f"names the vehicle file {file!r}, which is not found" if found else
+            f"names no vehicle file (vehicle {name!r})" if name else "names no vehicle")
+    raise ValueError(f"{source}: its metadata {said}; pass --vehicle FILE (or a built-in name: "
+                     f"{', '.join(BUILTIN_VEHICLES)})")
+
+
 @app.command("report")
 def report_cmd(
     estimate: Annotated[Path, typer.Argument(metavar="ESTIMATE", help="Log of estimates (a .parquet "
@@ -563,7 +559,9 @@ def report_cmd(
         metavar="[REFERENCE]", help="Log with ref_ channels (and omega_*, ax, ay): the log the "
         "estimate was made from.")] = None,
     out: Annotated[Path, typer.Option("--out", help="HTML file to write.")] = Path("report.html"),
-    vehicle: VehicleOpt = "",
+    vehicle: Annotated[str | None, typer.Option(
+        "--vehicle", help="Vehicle TOML file or built-in name for the wheel radius (default: "
+        "the one the estimate's metadata names, vehicle_file).")] = None,
     title: Annotated[str | None, typer.Option(help="Page title.")] = None,
     unpaired: Annotated[bool, typer.Option(
         "--unpaired", help="Compare with a REFERENCE that is not the estimate's own log (its "
@@ -582,11 +580,13 @@ def report_cmd(
 
     try:
         check_output_path(out, inputs=[estimate, reference], suffixes=(".html", ".htm"))
-        veh = load_vehicle(vehicle)
         est = read_log(estimate)
+        veh = load_vehicle(vehicle if vehicle is not None else _vehicle_of(est.attrs, estimate))
         ref = read_log(reference) if reference else None
         meta = {"estimate": str(estimate), "reference": str(reference) if reference else "none",
-                "vehicle": veh.name, "wheel_radius": f"{veh.body.wheel_radius:g} m"}
+                "vehicle": veh.name + ("" if vehicle is not None else " (from the estimate's "
+                                       "metadata)"),
+                "wheel_radius": f"{veh.body.wheel_radius:g} m"}
         if ref is not None:
             if unpaired:
                 meta["pairing"] = "not checked (--unpaired): the reference may be another log"

@@ -11,7 +11,7 @@ class VestimError(Exception):
 
 
 class LogFormatError(VestimError, ValueError):
-    """A drive log violates ``shared/spec/log-format.md``; the message names column, row and fix."""
+    """A drive log violates docs/format.md; the message names column, row and fix."""
 
 
 class VehicleFileError(VestimError, ValueError):

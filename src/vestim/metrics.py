@@ -43,6 +43,7 @@ __all__ = [
     "nrms",
     "rmse",
     "score",
+    "significant",
     "to_json",
     "to_markdown",
 ]
@@ -356,22 +357,36 @@ COVERAGE_COLUMNS: tuple[str, ...] = ("channel", "unit", "within_1sigma", "within
 
 
 def coverage(estimate: pd.DataFrame, reference: pd.DataFrame, *,
+             channels: Sequence[str] | None = None,
              estimate_name: str = "estimate", reference_name: str = "reference") -> pd.DataFrame:
     """How honest the estimate's σ is: for every channel ``X`` with ``sigma_X`` and ``ref_X``,
-    the share of samples whose error lies within 1σ and within 2σ.
+    the share of samples whose error lies within 1σ and within 2σ (|X − ref_X| ≤ σ, ≤ 2σ).
 
     A Gaussian error with that σ gives 68.3 % and 95.4 %; the issue's band for a calibrated
-    σ is 60–80 % and 90–98 %. Time alignment and NaN handling are those of :func:`score`.
+    σ is 60–80 % and 90–98 %. Time alignment and NaN handling are those of :func:`score`
+    (a sample whose σ is NaN is left out too).
+
+    Args:
+        channels: the channels to cover, in this order; default every channel with both a
+            ``sigma_`` column and a reference, in the spec's column order. Each named one
+            must have both.
 
     Returns:
-        One row per channel, columns :data:`COVERAGE_COLUMNS` (shares as fractions 0–1).
+        One row per channel, columns :data:`COVERAGE_COLUMNS` (shares as fractions 0–1;
+        ``median_sigma`` and ``rmse`` in the channel's unit).
 
     Raises:
         LogFormatError: as :func:`score`; also when no channel has both a σ and a reference.
     """
-    names = [c for c in ch.canonical_order(estimate.columns)
-             if _is_candidate(c) and f"{ch.SIGMA_PREFIX}{c}" in estimate.columns
-             and _reference_column(reference, c) is not None]
+    covered = [c for c in ch.canonical_order(estimate.columns)
+               if _is_candidate(c) and f"{ch.SIGMA_PREFIX}{c}" in estimate.columns
+               and _reference_column(reference, c) is not None]
+    names = covered if channels is None else list(channels)
+    for name in names:
+        if name not in covered:
+            raise LogFormatError(f"{estimate_name}: {name!r} needs a {ch.SIGMA_PREFIX}{name} column "
+                                 f"and a reference ({ch.REF_PREFIX}{name}) in {reference_name} "
+                                 "for its σ coverage")
     if not names:
         raise LogFormatError(f"{estimate_name}: no channel has both a sigma_ column and a "
                              f"reference in {reference_name}")
@@ -401,6 +416,19 @@ def coverage(estimate: pd.DataFrame, reference: pd.DataFrame, *,
 
 # ------------------------------------------------------------------------------ output
 
+def significant(value: Any, digits: int = 3) -> str:
+    """``value`` to ``digits`` significant figures, never in exponent form and never rounded
+    to zero: 0.01234 → "0.0123", 5 → "5.00", 1234.6 → "1235"; "0" for 0, "–" for NaN,
+    "inf"/"-inf" for infinities. The NRMS of every table and title is written with it."""
+    x = float(value)
+    if math.isnan(x):
+        return "–"
+    if math.isinf(x) or x == 0.0:
+        return "0" if x == 0.0 else ("inf" if x > 0 else "-inf")
+    decimals = max(digits - 1 - math.floor(math.log10(abs(x))), 0)
+    return f"{x:.{decimals}f}"
+
+
 def _sig(value: Any, digits: int = 4, *, fixed: int | None = None) -> str:
     """``value`` to ``digits`` significant figures (or ``fixed`` decimals); "–" for NaN."""
     x = float(value)
@@ -412,7 +440,8 @@ def _sig(value: Any, digits: int = 4, *, fixed: int | None = None) -> str:
 def to_markdown(table: pd.DataFrame) -> str:
     """A :func:`score` table as a GitHub Markdown table (like 001 Table III), with a footnote.
 
-    NRMS is shown in % with two decimals; an NRMS normalised by the floor is marked ``*``.
+    NRMS is shown in % to 3 significant figures (:func:`significant`: a 0.004 % error reads
+    0.00400, not 0.00); an NRMS normalised by the floor is marked ``*``.
     RMSE, max error and max |ref| are given to 4 significant figures in the channel's unit.
     """
     missing = [c for c in SCORE_COLUMNS if c not in table.columns]
@@ -423,7 +452,7 @@ def to_markdown(table: pd.DataFrame) -> str:
         "|---|---|---:|---:|---:|---:|---:|---:|",
     ]
     for row in table.to_dict(orient="records"):
-        pct = _sig(row["nrms_pct"], fixed=2)
+        pct = significant(row["nrms_pct"])
         if bool(row["floored"]):
             pct += "*"
         skipped = int(row["skipped"])

@@ -33,7 +33,10 @@ def sim_log() -> pd.DataFrame:
 @pytest.fixture(scope="session")
 def offset_estimate(sim_log: pd.DataFrame) -> pd.DataFrame:
     """Every report channel as truth + :data:`OFFSETS`, σ on v_x and F_x, μ_x/μ_y from the
-    estimated forces, a ``valid_fl`` flag that drops to 0 for 1 s and a ``health_vx`` ramp."""
+    estimated forces, a ``valid_fl`` flag that drops to 0 for 1 s, a ``health_vx`` ramp,
+    ``valid_velocity`` 0 with reason 1 (not converged) for t < 2 s and reason 2 + 8
+    (standstill, high slip) for 5 s ≤ t < 5.5 s, and a road friction ``mu_fl`` that is NaN
+    (not excited) on every row, ``mu_fr`` on the first half."""
     t = sim_log["t"].to_numpy()
     cols: dict[str, np.ndarray] = {"t": t}
     for name, off in OFFSETS.items():
@@ -45,6 +48,11 @@ def offset_estimate(sim_log: pd.DataFrame) -> pd.DataFrame:
         cols[f"mu_y_{c}"] = cols[f"fy_{c}"] / cols[f"fz_{c}"]
     cols["valid_fl"] = np.where((t > 3.0) & (t < 4.0), 0.0, 1.0)
     cols["health_vx"] = np.clip(t / t[-1], 0.0, 1.0)
+    reason = np.where(t < 2.0, 1.0, np.where((t >= 5.0) & (t < 5.5), 10.0, 0.0))
+    cols["valid_velocity"] = (reason == 0.0).astype(float)
+    cols["reason_velocity"] = reason
+    cols["mu_fl"] = np.full(t.size, np.nan)
+    cols["mu_fr"] = np.where(t < t[t.size // 2], np.nan, sim_log["ref_mu_fr"].to_numpy())
     est = pd.DataFrame(cols)
     est.attrs = {"vehicle": "hashemi_suv", "velocity": "fused"}
     return est

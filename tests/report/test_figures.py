@@ -19,7 +19,7 @@ from tests.report.conftest import OFFSETS, R
 from vestim.constants import CORNERS
 from vestim.errors import LogFormatError
 from vestim.io import channels as ch
-from vestim.metrics import score
+from vestim.metrics import coverage, score, significant
 from vestim.report.data import MAX_POINTS
 from vestim.report.data import envelope as _envelope
 from vestim.report.figures import FIGURE_FILES, estimate_figure, plot_estimate
@@ -170,7 +170,9 @@ def test_corner_grid_conventions(offset_estimate: pd.DataFrame, sim_log: pd.Data
     """F_x grid of the offset estimate (F_x = truth + 100·(k+1) N at corner k, σ = 150 N):
     the four value panels share one y range holding every corner's band and reference; each
     corner's estimate and error are in its colour, the reference black; the error strip
-    under a panel holds the offset; the panel text gives metrics.score's NRMS and RMSE."""
+    under a panel holds the offset; the panel text gives metrics.score's NRMS (3 significant
+    figures) and RMSE and the σ coverage: the 100 N error of fl is within 1σ everywhere, the
+    200 N of fr within 2σ only, the 400 N of rr outside 2σ = 300 N."""
     fig = estimate_figure(offset_estimate, sim_log, "force_fx", wheel_radius=R)
     assert fig is not None
     try:
@@ -183,6 +185,10 @@ def test_corner_grid_conventions(offset_estimate: pd.DataFrame, sim_log: pd.Data
             assert lo <= est.min() - 150.0 and hi >= est.max() + 150.0
             assert lo <= sim_log[f"ref_fx_{c}"].min() and hi >= sim_log[f"ref_fx_{c}"].max()
         table = score(offset_estimate, sim_log).set_index("channel")
+        cover = coverage(offset_estimate, sim_log).set_index("channel")
+        assert list(cover.loc["fx_fl", ["within_1sigma", "within_2sigma"]]) == [1.0, 1.0]
+        assert list(cover.loc["fx_fr", ["within_1sigma", "within_2sigma"]]) == [0.0, 1.0]
+        assert list(cover.loc["fx_rr", ["within_1sigma", "within_2sigma"]]) == [0.0, 0.0]
         errors = [ax for ax in fig.axes if ax.get_ylabel() == "error [N]"]
         assert len(errors) == 4
         assert len({ax.get_ylim() for ax in errors}) == 1  # error strips share a range too
@@ -192,7 +198,9 @@ def test_corner_grid_conventions(offset_estimate: pd.DataFrame, sim_log: pd.Data
             assert to_hex(lines["reference"].get_color()) == REFERENCE_COLOR
             assert ax.get_ylabel() == "F_x [N]"
             row = table.loc[f"fx_{c}"]
-            text = f"NRMS {row['nrms_pct']:.1f} %, RMSE {row['rmse']:.3g} N"
+            cov = cover.loc[f"fx_{c}"]
+            text = (f"NRMS {significant(row['nrms_pct'])} %, RMSE {row['rmse']:.3g} N, within 1σ "
+                    f"{100 * cov['within_1sigma']:.0f} %, 2σ {100 * cov['within_2sigma']:.0f} %")
             assert text in [t.get_text() for t in ax.texts]
             # the strip right below the panel: same column, next row
             strip = next(e for e in errors if e.get_position().x0 == pytest.approx(ax.get_position().x0)

@@ -559,7 +559,7 @@ def analyze_observability(log: pd.DataFrame | str | Path, vehicle: Vehicle | str
     missing = [c for c in need if c not in df.columns]
     if missing:
         raise LogFormatError(f"observability analysis needs column(s) {', '.join(missing)} "
-                             "(spec: shared/spec/log-format.md)")
+                             "(spec: docs/format.md)")
     t = df["t"].to_numpy(float)
     if t.size < 3 or np.any(np.diff(t) <= 0):
         raise LogFormatError("column t must be strictly increasing with at least 3 samples")

@@ -1,4 +1,4 @@
-"""Reading and writing drive logs and vehicle files (``shared/spec/log-format.md``)."""
+"""Reading and writing drive logs and vehicle files (docs/format.md)."""
 
 from vestim.io.log import (
     LogWriter,

@@ -1,4 +1,4 @@
-"""Column names and units of a drive log, defined once (``shared/spec/log-format.md``).
+"""Column names and units of a drive log, defined once (docs/format.md).
 
 Every per-corner channel follows :data:`vestim.constants.CORNERS` order
 (fl, fr, rl, rr). Tuples here are the spec's order; :func:`canonical_order`
@@ -41,7 +41,7 @@ GNSS_SPEED = "gnss_speed"
 """Speed over ground from a GNSS receiver, m/s (≥ 0), a sparse channel."""
 SPARSE: tuple[str, ...] = (GNSS_SPEED,)
 """Channels sampled slower than ``t``: a value on the row nearest each of their own samples
-and NaN between (shared/spec/log-format.md, "Sparse channels")."""
+and NaN between (docs/format.md, "Sparse channels")."""
 
 VEHICLE_SPEED = "vehicle_speed"
 """Vehicle speed from the CAN bus (the instrument-cluster / ESC reference speed), m/s (≥ 0),
@@ -128,20 +128,33 @@ def _base_units() -> dict[str, str]:
     units.update(estimated)
     units.update({REF_PREFIX + name: unit for name, unit in estimated.items()
                   if name in _REFERENCE_BASE})
+    # the pipeline's further outputs (docs/format.md, "Estimated channels")
+    units.update(dict.fromkeys((*corner_columns("vxt"), *corner_columns("vyt")), "m/s"))
+    units.update({"bias_ax": "m/s²", "cornering_stiffness": "1/rad", "radius_scale": "-",
+                  "gnss_latency": "s"})
+    units.update(dict.fromkeys((f"mu_{c}_excited" for c in CORNERS), "-"))
     return units
 
 
 UNITS: dict[str, str] = _base_units()
-"""SI unit of every known column ("-" for dimensionless); see :func:`unit_of` for sigma_*."""
+"""SI unit of every known column ("-" for dimensionless); see :func:`unit_of` for sigma_*
+and the flag families of :data:`FLAG_UNITS`."""
+
+FLAG_UNITS: dict[str, str] = {"valid_": "-", "reason_": "-", "health_": "-",
+                              "confidence_": "-"}
+"""Unit of every column of a flag family, by prefix: ``valid_<group>`` (1/0),
+``reason_<group>`` (a bit mask), ``health_<channel>`` (1 healthy, 0 left out) and the
+opinion fusion's ``confidence_<corner>`` weights, all dimensionless."""
 
 
 def unit_of(column: str) -> str | None:
-    """Unit of ``column`` (``sigma_<name>`` takes ``<name>``'s unit); ``None`` when unknown."""
+    """Unit of ``column`` (``sigma_<name>`` takes ``<name>``'s unit, a flag family its
+    :data:`FLAG_UNITS` entry); ``None`` when unknown."""
     if column in UNITS:
         return UNITS[column]
     if column.startswith(SIGMA_PREFIX):
         return UNITS.get(column[len(SIGMA_PREFIX):])
-    return None
+    return next((u for p, u in FLAG_UNITS.items() if column.startswith(p)), None)
 
 
 _RANK: dict[str, int] = {}

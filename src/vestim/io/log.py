@@ -1,4 +1,4 @@
-"""Read, validate and write drive logs (``shared/spec/log-format.md``, version 1).
+"""Read, validate and write drive logs (docs/format.md, version 1).
 
 A log is a table with one row per sample: a strictly increasing, finite time
 column ``t`` in s and numeric channels in SI units named as in
@@ -12,6 +12,7 @@ its time ``t`` where one applies, and how to fix it.
 
 from __future__ import annotations
 
+import base64
 import csv
 import io
 import math
@@ -254,6 +255,22 @@ def write_log(
     return w.path
 
 
+_ARROW_SCHEMA = "ARROW:schema"
+"""The Parquet key-value entry in which Arrow stores a file's schema, field metadata included
+(Arrow's convention: base64 of the IPC-serialised schema)."""
+
+
+def _unit_schema(schema: pa.Schema, metadata: Mapping[str, str]) -> str:
+    """``schema`` with each column's unit (:func:`vestim.io.channels.unit_of`) as field
+    metadata ``unit`` and ``metadata`` as schema metadata, serialised for the
+    ``ARROW:schema`` entry: Parquet has no field metadata of its own, and writing the entry
+    when the file is closed lets metadata be added until then."""
+    fields = [f.with_metadata({"unit": unit}) if (unit := ch.unit_of(f.name)) else f
+              for f in schema]
+    full = pa.schema(fields, metadata=dict(metadata))
+    return base64.b64encode(full.serialize().to_pybytes()).decode("ascii")
+
+
 class LogWriter:
     """Write a log piece by piece (bounded memory), atomically: the file appears, whole, when
     the ``with`` block ends without an exception, and not at all otherwise.
@@ -263,7 +280,10 @@ class LogWriter:
     checked as :func:`write_log` checks a log. With ``float32``, every float column but ``t``
     is stored in single precision (a relative 6e-8, far below any estimate's σ; ``t`` stays
     float64, which a 10 h log at 200 Hz needs), which halves the file. Parquet columns are
-    zstd-compressed without dictionaries (measured variables rarely repeat a value).
+    zstd-compressed without dictionaries (measured variables rarely repeat a value), and the
+    Parquet schema gives each column its unit (field metadata ``unit``,
+    :func:`vestim.io.channels.unit_of`: "m/s", "N", "-" for dimensionless; a column vestim
+    does not know has none).
     ``metadata`` (str → str) may be filled until the block ends: Parquet stores it in the
     file's key-value metadata under ``vestim.<key>`` (:func:`read_log` returns it in
     ``attrs``); CSV ignores it. Parquet pages carry checksums, which :func:`read_log` verifies.
@@ -356,8 +376,9 @@ class LogWriter:
                         raise TypeError(f"metadata must map str to str; got {key!r}: {value!r} "
                                         f"({type(key).__name__}: {type(value).__name__})")
                 if self._parquet is not None:
+                    meta = {METADATA_PREFIX + k: v for k, v in self.metadata.items()}
                     self._parquet.add_key_value_metadata(
-                        {METADATA_PREFIX + k: v for k, v in self.metadata.items()})
+                        {**meta, _ARROW_SCHEMA: _unit_schema(self._parquet.schema, meta)})
         except BaseException:
             self._close()
             self._atomic.__exit__(*sys.exc_info())

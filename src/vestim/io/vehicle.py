@@ -1,6 +1,6 @@
 """Vehicle TOML files → frozen, validated parameter objects.
 
-The file format is fixed by ``shared/spec/log-format.md`` ("Vehicle file"):
+The file format is fixed by docs/format.md ("Vehicle file"):
 ``[vehicle]`` and ``[tire]`` are required and every key in them is required;
 ``[stiffness]`` is optional for the stiffness estimator. The simulator reads
 four further optional tables, each with documented defaults:

@@ -1,4 +1,4 @@
-"""Write a drive log (``shared/spec/log-format.md``) as the containers real cars record.
+"""Write a drive log (docs/format.md) as the containers real cars record.
 
 - :func:`write_mdf_can`: an MDF4 file whose measured channels are raw CAN frames (ASAM
   bus-logging ``CAN_DataFrame`` channel group), encoded with the DBC :data:`VEHICLE_DBC`

@@ -4,7 +4,7 @@ Pure functions, compiled with Numba, written once for scalars so that the same
 code serves the simulator, sigma points and particles (loop over them in the
 caller's kernel). Units are SI; normalised forces μ = F/Fz are dimensionless.
 
-Sign conventions (``shared/spec/log-format.md``): tire frame x forward along
+Sign conventions (docs/format.md): tire frame x forward along
 the wheel heading, y left. Relative (slip) velocities of the LuGre model are
 ``vrx = R·ω − vxt`` and ``vry = −vyt`` (001 text after eq. (21)), so traction
 (R·ω > vxt) gives Fx > 0 and a tire sliding to the left (vyt > 0) gets Fy < 0.

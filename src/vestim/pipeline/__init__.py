@@ -681,17 +681,17 @@ def estimate(
     behind the same input gate (:func:`vestim.io.sanity.gate`).
 
     Args:
-        log: a drive log (spec columns and SI units, ``../spec/log-format.md``) or the path of
-            a ``.csv`` / ``.parquet`` file; it is only read.
+        log: a drive log (spec columns and SI units, docs/format.md) or the path of a
+            ``.csv`` / ``.parquet`` file; it is only read.
         vehicle: a :class:`~vestim.io.vehicle.Vehicle`, a vehicle TOML file or a built-in name.
         config: the stages and their parameters (default: :class:`PipelineConfig`).
 
     Returns:
         One row per input sample: ``t`` and the estimate channels listed in this module's
-        docstring (SI units). Its ``attrs`` hold the metadata ``vestim estimate`` writes
-        about the input: ``warnings`` (JSON list of the gate's and the consistency monitor's
-        warnings) and ``checks_not_run`` (JSON list of the checks that could not run, with
-        the reason), plus the force stage's input sources.
+        docstring (SI units); its ``attrs`` hold the metadata ``vestim estimate`` writes
+        (:func:`vestim.pipeline.provenance.estimate_metadata`): the input gate's ``warnings``
+        (with the consistency monitor's) and ``checks_not_run``, the input sources, the
+        configuration and the vehicle's provenance.
 
     Raises:
         LogFormatError: the log fails the input gate (e.g. a yaw rate with the wrong sign);
@@ -699,14 +699,15 @@ def estimate(
     """
     from vestim.io import load_vehicle, read_log
     from vestim.io.sanity import gate
+    from vestim.pipeline.provenance import estimate_metadata
 
     veh = vehicle if isinstance(vehicle, Vehicle) else load_vehicle(vehicle)
     df = log if isinstance(log, pd.DataFrame) else read_log(
         log, require=["measured"], wheel_radius=veh.body.wheel_radius)
     checked = gate(df, veh, source="log" if isinstance(log, pd.DataFrame) else str(log))
     pipe = Pipeline(veh, config)
-    est = pipe.run(df)
-    unverified = pipe.unverified_warning()
-    est.attrs.update({**pipe.force.input_sources,
-                      **checked.metadata([unverified] if unverified else [])})
-    return est
+    out = pipe.run(df)
+    out.attrs.update(estimate_metadata(pipe, vehicle,
+                                       source="DataFrame" if log is df else str(log),
+                                       log_attrs=df.attrs, checked=checked))
+    return out

@@ -14,10 +14,12 @@ import pandas as pd
 
 from vestim.constants import CORNERS
 from vestim.errors import LogFormatError
+from vestim.estimators.validity import reason_names
 from vestim.io import channels as ch
-from vestim.metrics import channel_family, score
+from vestim.metrics import channel_family, coverage, score, significant
 
-__all__ = ["MAX_POINTS", "Logs", "band", "check_pairing", "envelope", "peak_points"]
+__all__ = ["MAX_POINTS", "MAX_SPANS", "Logs", "Span", "band", "check_pairing", "envelope",
+           "invalid_spans", "peak_points"]
 
 MAX_POINTS = 2000
 """Most points drawn per line; a longer series is drawn as its min/max envelope (1000
@@ -123,6 +125,53 @@ def peak_points(x: np.ndarray, y: np.ndarray, max_points: int = MAX_POINTS) -> n
     return idx[best >= 0.0]
 
 
+Span = tuple[float, float, int]
+"""(start, end, reason mask) of a stretch of rows whose ``valid_<group>`` is 0: ``t`` of its
+first row, ``t`` of the first valid row after it (the last ``t`` at the log's end), in s."""
+
+
+MAX_SPANS = 100
+"""Most "not valid" spans drawn per validity group: a flag that flickers more often is drawn
+at a coarser time resolution (every span a shape in each plot; 1000 of them in seven plots
+would add several MB to a report)."""
+
+
+def invalid_spans(t: np.ndarray, valid: np.ndarray, reason: np.ndarray,
+                  max_points: int = MAX_POINTS, max_spans: int = MAX_SPANS) -> list[Span]:
+    """The stretches where ``valid`` is 0, split where the ``reason`` mask changes.
+
+    A log longer than ``max_points`` is first cut into ``max_points // 2`` time buckets (as
+    :func:`envelope` cuts lines): a bucket is invalid when any of its rows is, with the
+    bitwise OR of their masks, so no invalid row is lost and a flickering flag gives at most
+    one span per bucket. When that still gives more than ``max_spans`` spans, the buckets
+    are ``max_spans`` instead.
+    """
+    bad = np.asarray(valid, dtype=float) == 0.0
+    mask = np.where(bad, np.nan_to_num(np.asarray(reason, dtype=float)), 0.0).astype(np.int64)
+    if t.size == 0 or not bad.any():
+        return []
+    spans = _spans(t, bad, mask, None if t.size <= max_points else max_points // 2)
+    return spans if len(spans) <= max_spans else _spans(t, bad, mask, max_spans)
+
+
+def _spans(t: np.ndarray, bad: np.ndarray, mask: np.ndarray, buckets: int | None) -> list[Span]:
+    """:func:`invalid_spans` at the resolution of the samples (``buckets`` None) or of
+    ``buckets`` equal time buckets."""
+    if buckets is not None and buckets < t.size:
+        starts = np.linspace(0, t.size, buckets, endpoint=False).astype(np.intp)
+        bad = np.logical_or.reduceat(bad, starts)
+        mask = np.bitwise_or.reduceat(mask, starts)
+        t_start, t_end = t[starts], np.append(t[starts[1:]], t[-1])
+    else:
+        t_start, t_end = t, np.append(t[1:], t[-1])
+    key = np.where(bad, mask, -1)
+    edges = np.flatnonzero(np.diff(key)) + 1
+    first = np.concatenate(([0], edges))
+    last = np.concatenate((edges, [key.size])) - 1
+    return [(float(t_start[a]), float(t_end[b]), int(key[a]))
+            for a, b in zip(first, last, strict=True) if key[a] >= 0]
+
+
 class Logs:
     """Read-only view of an estimate and its reference (``ref_`` channels) as float arrays.
 
@@ -138,6 +187,7 @@ class Logs:
         self.t_ref = self._time(self.ref, "reference")
         self._same_t = self.t_est.shape == self.t_ref.shape and np.array_equal(self.t_est, self.t_ref)
         self._scores: dict[str, dict[str, Any]] | None = None
+        self._coverage: dict[str, dict[str, Any]] | None = None
 
     @staticmethod
     def _time(df: pd.DataFrame, name: str) -> np.ndarray:
@@ -231,14 +281,52 @@ class Logs:
                              for r in table.to_dict(orient="records")})
         return self._scores
 
+    def coverage(self) -> dict[str, dict[str, Any]]:
+        """The :func:`vestim.metrics.coverage` row (share of samples with |error| ≤ 1σ and
+        ≤ 2σ) of every scorable channel that has a ``sigma_`` column, by channel name (empty
+        when none has). Computed once."""
+        if self._coverage is None:
+            names = [n for n in self.scorable() if self.sigma(n) is not None]
+            table = coverage(self.est, self.ref, channels=names) if names else None
+            self._coverage = ({} if table is None else
+                              {str(r["channel"]): {str(k): v for k, v in r.items()}
+                               for r in table.to_dict(orient="records")})
+        return self._coverage
+
+    def coverage_text(self, name: str) -> str:
+        """``"within 1σ 68 %, 2σ 95 %"`` for a channel with a σ and a reference, else ``""``."""
+        row = self.coverage().get(name)
+        if row is None or not row["samples"]:
+            return ""
+        return (f"within 1σ {100 * row['within_1sigma']:.0f} %, "
+                f"2σ {100 * row['within_2sigma']:.0f} %")
+
     def score_text(self, name: str) -> str:
-        """``"NRMS 3.2 %, RMSE 0.12 m/s"`` for a scored channel (``*``: floor used), else ``""``."""
+        """``"NRMS 3.21 %, RMSE 0.12 m/s"`` for a scored channel (NRMS to 3 significant
+        figures, :func:`vestim.metrics.significant`; ``*``: floor used), followed by its σ
+        coverage (:meth:`coverage_text`) where it has a σ; else ``""``."""
         row = self.scores().get(name)
         if row is None or not np.isfinite(row["nrms_pct"]):
             return ""
         star = "*" if bool(row["floored"]) else ""
         unit = f" {row['unit']}" if row["unit"] not in ("", "-") else ""
-        return f"NRMS {row['nrms_pct']:.1f} %{star}, RMSE {row['rmse']:.3g}{unit}"
+        cover = self.coverage_text(name)
+        return (f"NRMS {significant(row['nrms_pct'])} %{star}, RMSE {row['rmse']:.3g}{unit}"
+                + (f", {cover}" if cover else ""))
+
+    def invalid_spans(self, group: str) -> list[Span]:
+        """:func:`invalid_spans` of ``valid_<group>`` and ``reason_<group>`` on :attr:`t_est`
+        (empty when the estimate lacks either)."""
+        valid, reason = f"valid_{group}", f"reason_{group}"
+        if not (self.has(valid) and self.has(reason)):
+            return []
+        return invalid_spans(self.t_est, self.estimate(valid), self.estimate(reason))
+
+    @staticmethod
+    def reasons(mask: int) -> list[str]:
+        """The reasons of a ``reason_*`` mask, decoded by
+        :func:`vestim.estimators.validity.reason_names` (``[]`` for 0)."""
+        return reason_names(mask)
 
     def corners_with(self, prefix: str) -> list[str]:
         """Corners whose ``<prefix>_<corner>`` the estimate has."""

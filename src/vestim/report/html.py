@@ -16,19 +16,25 @@ when the estimate lacks its channels:
    when known) and the a_x–a_y (GG) diagram of the measured specific force;
 7. validity and health timelines of any ``valid_*`` and ``health_*`` columns.
 
+Every time plot of a validity group is shaded where its ``valid_<group>`` is 0, by reason
+(``reason_<group>`` decoded by :func:`vestim.estimators.validity.reason_names`); the score
+table and the panel titles give each channel's σ coverage (:func:`vestim.metrics.coverage`).
+
 Conventions are those of the PNG figures (:mod:`vestim.report.style`): one colour per
 corner everywhere, reference in black, one y range shared by (and zoom-linked across) the
 four corner panels of a quantity, an error strip (estimate − reference, same unit) under
-every value panel that has a reference, and the channel's NRMS/RMSE in its panel title.
+every value panel that has a reference, and the channel's NRMS (3 significant figures),
+RMSE and σ coverage in its panel title.
 Long logs are drawn as a min/max envelope of :data:`~vestim.report.data.MAX_POINTS` points
 per line (scatter plots keep the sample of largest magnitude per time bucket), stored as
-float32, so a 1 h log at 200 Hz gives a file of about 8 MB, of which 4.8 MB is plotly.js.
+float32, so a 1 h log at 200 Hz gives a file of about 9 MB, of which 4.8 MB is plotly.js.
 """
 
 from __future__ import annotations
 
 import datetime as _dt
 import html
+import json
 import math
 import os
 from collections.abc import Mapping, Sequence
@@ -43,12 +49,15 @@ from vestim.constants import CORNERS, G
 from vestim.errors import optional_import
 from vestim.io import channels as ch
 from vestim.io.files import write_text_atomic
+from vestim.metrics import channel_family, significant
 from vestim.report.data import Logs, band, envelope, peak_points
 from vestim.report.style import (
     CG_COLOR,
     CORNER_COLORS,
     CORNER_NAMES,
     GRID,
+    INVALID_ALPHA,
+    REASON_COLORS,
     REFERENCE_COLOR,
     SIGMA_ALPHA,
     axis_label,
@@ -88,6 +97,16 @@ SECTIONS: tuple[tuple[str, str, tuple[str, ...]], ...] = (
 _CORNER_PREFIX = {"velocity_vx": "vx", "velocity_vy": "vy", "force_fx": "fx", "force_fy": "fy",
                   "force_fz": "fz", "slip_ratio": "slip_ratio", "slip_angle": "slip_angle"}
 _FLAG_PREFIXES = ("valid_", "health_")
+_BAND_GROUP = {"speed": "velocity", "velocity_cg": "velocity", "velocity_vx": "velocity",
+               "velocity_vy": "velocity", "force_fx": "force", "force_fy": "force",
+               "force_fz": "force", "slip_ratio": "slip", "slip_angle": "slip"}
+"""The validity group (``valid_<group>``, ``reason_<group>``) whose "not valid" spans are
+shaded behind each time plot."""
+_PLOT_PX = 1150
+"""Width in px of a one-column figure's plot area (a 2×2 grid: half of it each), the
+page's maximum width less the margins."""
+_CHAR_PX = 6.5
+"""Width in px of one character of a band label (10 px sans-serif)."""
 _CONFIG = {"responsive": True, "displaylogo": False}
 _TEMPLATE = "plotly_white"
 
@@ -169,6 +188,44 @@ class _Builder:
             if k:
                 kw["matches"] = first
             fig.update_yaxes(row=r, col=c, **kw)
+
+    def _bands(self, fig: Any, group: str, cells: Sequence[tuple[str, str]], *,
+               legend: bool = True) -> None:
+        """Shade every span where ``valid_<group>`` is 0 on the subplots ``cells`` ((x axis,
+        y reference) pairs), coloured by its first reason (:data:`REASON_COLORS`), named in
+        the legend as "<group> not valid: <reasons>" and labelled in place where its width
+        on the page holds the label."""
+        logs = self.logs
+        spans = logs.invalid_spans(group)
+        if not spans:
+            return
+        duration = float(logs.t_est[-1] - logs.t_est[0]) or 1.0
+        px_per_s = _PLOT_PX / len({x for x, _ in cells}) / duration
+        shown: set[str] = set()
+        shapes: list[dict[str, Any]] = []
+        for x0, x1, mask in spans:
+            names = logs.reasons(mask)
+            text = ", ".join(names) or "no reason given"
+            name = f"{group} not valid: {text}"
+            color = REASON_COLORS[names[0]] if names else REASON_COLORS["not converged"]
+            for k, (xref, yref) in enumerate(cells):
+                first = legend and k == 0 and name not in shown
+                shape: dict[str, Any] = {
+                    "type": "rect", "xref": xref, "yref": yref, "x0": x0, "x1": x1, "y0": 0,
+                    "y1": 1, "fillcolor": color, "opacity": INVALID_ALPHA, "line": {"width": 0},
+                    "layer": "below", "name": name, "legendgroup": name, "showlegend": first}
+                if k == 0 and (x1 - x0) * px_per_s >= _CHAR_PX * (len(text) + 2):
+                    shape["label"] = {"text": text, "textposition": "top left",
+                                      "font": {"size": 10, "color": "#444444"}}
+                shapes.append(shape)
+                if first:
+                    shown.add(name)
+        # one assignment: plotly re-validates every shape on each add_shape (quadratic)
+        fig.layout.shapes = (*fig.layout.shapes, *shapes)
+
+    def _columns(self, fig: Any, cols: int) -> list[tuple[str, str]]:
+        """(x axis, "paper") of each column of ``fig``: a band spans every row of a column."""
+        return [(str(fig.get_subplot(1, c).yaxis.anchor), "paper") for c in range(1, cols + 1)]
 
     def _layout(self, fig: Any, key: str, height: int) -> Any:
         fig.update_layout(title={"text": FIGURES[key], "x": 0.01}, template=_TEMPLATE, height=height,
@@ -365,6 +422,10 @@ class _Builder:
             return None
         fig = self.make_subplots(rows=len(cols), cols=1, shared_xaxes=True, vertical_spacing=0.02)
         for k, name in enumerate(cols):
+            if name.startswith("valid_"):
+                sub = fig.get_subplot(k + 1, 1)
+                self._bands(fig, name[len("valid_"):],
+                            [(str(sub.yaxis.anchor), f"{sub.xaxis.anchor} domain")])
             corner = next((c for c in CORNERS if name.endswith("_" + c)), None)
             color = CORNER_COLORS[corner] if corner else CG_COLOR
             tt, yy = envelope(logs.t_est, logs.estimate(name))
@@ -382,6 +443,9 @@ class _Builder:
         for key in FIGURES:
             fig = self.corners(key) if key in _CORNER_PREFIX else getattr(self, key)()
             if fig is not None:
+                if key in _BAND_GROUP:
+                    self._bands(fig, _BAND_GROUP[key],
+                                self._columns(fig, 2 if key in _CORNER_PREFIX else 1))
                 out[key] = fig
         return out
 
@@ -422,28 +486,43 @@ def _fmt(x: Any, digits: int = 4) -> str:
     return "–" if math.isnan(v) else f"{v:.{digits}g}"
 
 
+def _samples_cell(r: Mapping[str, Any]) -> str:
+    """Samples used, and why others were not: a road friction μ is NaN where the tire used
+    too little of it to tell (``mu_*_excited`` = 0), so its left-out rows are "not excited"."""
+    used, skipped = int(r["samples"]), int(r["skipped"])
+    if channel_family(str(r["channel"])) == "mu" and skipped:
+        return "not excited" if used == 0 else f"{used} ({skipped} not excited)"
+    return f"{used}" + (f" ({skipped} NaN skipped)" if skipped else "")
+
+
 def _score_table(logs: Logs) -> str:
     rows = logs.scores()
     if not rows:
         return ("<p class='note'>No reference channels: give a reference log (REF) with "
                 "<code>ref_</code> columns to score the estimate.</p>")
+    cover = logs.coverage()
     lines = ["<table class='scores' id='score-table'><tr><th>channel</th><th>unit</th>"
              "<th>NRMS [%]</th><th>RMSE</th><th>max error</th><th>max |ref|</th><th>floor</th>"
-             "<th>samples</th></tr>"]
+             "<th>within 1σ [%]</th><th>within 2σ [%]</th><th>samples</th></tr>"]
     floored = False
     for r in rows.values():
-        pct = "–" if not math.isfinite(r["nrms_pct"]) else f"{r['nrms_pct']:.2f}"
+        pct = significant(r["nrms_pct"])
         if bool(r["floored"]):
             pct += "*"
             floored = True
-        skipped = f" ({int(r['skipped'])} NaN skipped)" if int(r["skipped"]) else ""
+        c = cover.get(str(r["channel"]))
+        within = (["–", "–"] if c is None or not c["samples"] else
+                  [f"{100 * c['within_1sigma']:.1f}", f"{100 * c['within_2sigma']:.1f}"])
         lines.append(f"<tr><td>{html.escape(r['channel'])}</td><td>{html.escape(r['unit'])}</td>"
                      f"<td>{pct}</td><td>{_fmt(r['rmse'])}</td><td>{_fmt(r['max_error'])}</td>"
                      f"<td>{_fmt(r['ref_max'])}</td><td>{_fmt(r['floor'])}</td>"
-                     f"<td>{int(r['samples'])}{skipped}</td></tr>")
+                     f"<td class='cover'>{within[0]}</td><td class='cover'>{within[1]}</td>"
+                     f"<td>{html.escape(_samples_cell(r))}</td></tr>")
     lines.append("</table>")
-    note = ("NRMS = RMS error / max(max|ref|, floor) (000 Sec. IV); RMSE, max error, max |ref| "
-            "and floor in the channel's unit.")
+    note = ("NRMS = RMS error / max(max|ref|, floor) (000 Sec. IV), to 3 significant figures; "
+            "RMSE, max error, max |ref| and floor in the channel's unit. Within 1σ / 2σ: the "
+            "share of samples whose |error| is at most the estimate's own σ (sigma_*) or 2σ; "
+            "an honest Gaussian σ gives 68.3 % and 95.4 % (– where the estimate has no σ).")
     if floored:
         note += " * The truth stayed below the floor, so the floor was the denominator."
     lines.append(f"<p class='note'>{note}</p>")
@@ -451,11 +530,59 @@ def _score_table(logs: Logs) -> str:
 
 
 def _kv_table(items: Mapping[str, Any], table_id: str) -> str:
+    """Two-column table of ``items``; a value of several lines (a JSON list) keeps its lines."""
     if not items:
         return "<p class='note'>none</p>"
-    rows = "".join(f"<tr><td>{html.escape(str(k))}</td><td>{html.escape(str(v))}</td></tr>"
+    rows = "".join(f"<tr><td>{html.escape(str(k))}</td>"
+                   f"<td>{'<br>'.join(html.escape(x) for x in str(v).splitlines()) or '–'}</td></tr>"
                    for k, v in items.items())
     return f"<table class='kv' id='{table_id}'><tr><th>key</th><th>value</th></tr>{rows}</table>"
+
+
+def _json(value: Any) -> Any:
+    """``value`` parsed when it is a JSON object or array (Parquet metadata holds them as
+    text), else ``value`` itself."""
+    if isinstance(value, str) and value[:1] in "[{":
+        try:
+            return json.loads(value)
+        except ValueError:
+            return value
+    return value
+
+
+def _flatten(obj: Any, path: tuple[str, ...] = ()) -> list[tuple[str, str, str]]:
+    """(table, parameter, value) rows of a nested configuration: ``{"force_params": {"ukf":
+    {"r_omega": 0.18}}}`` → ``("force_params.ukf", "r_omega", "0.18")``."""
+    if isinstance(obj, Mapping) and obj:
+        return [row for k, v in obj.items() for row in _flatten(v, (*path, str(k)))]
+    text = json.dumps(obj, ensure_ascii=False) if isinstance(obj, list | Mapping) else str(obj)
+    return [(".".join(path[:-1]) or "pipeline", path[-1] if path else "", text)]
+
+
+def _readable(value: Any) -> str:
+    """A metadata value as text: a JSON list one item per line ("none" when empty), an item
+    that is an object as ``key: value; …``."""
+    value = _json(value)
+    if isinstance(value, list):
+        if not value:
+            return "none"
+        return "\n".join("; ".join(f"{k}: {v}" for k, v in item.items())
+                         if isinstance(item, Mapping) else
+                         (" … ".join(map(str, item)) if isinstance(item, list) else str(item))
+                         for item in value)
+    if isinstance(value, Mapping):
+        return "\n".join(f"{k}: {v}" for k, v in value.items())
+    return str(value)
+
+
+def _config_table(config: Any) -> str:
+    """The estimate's configuration (its ``config`` metadata, JSON) as a table of one row per
+    parameter, grouped by the table it belongs to."""
+    rows = _flatten(_json(config))
+    body = "".join(f"<tr><td>{html.escape(t)}</td><td>{html.escape(k)}</td>"
+                   f"<td>{html.escape(v)}</td></tr>" for t, k, v in rows)
+    return ("<table class='kv' id='config-table'><tr><th>table</th><th>parameter</th>"
+            f"<th>value</th></tr>{body}</table>")
 
 
 def _legend() -> str:
@@ -541,10 +668,14 @@ def write_html_report(
         parts.append("<p class='note' id='missing-sections'>Sections without channels in this "
                      "estimate: " + html.escape("; ".join(missing)) + ".</p>")
     parts += ["<h2 id='scores'>Scores against the reference</h2>", _score_table(logs)]
+    attrs = {str(k): v for k, v in estimate.attrs.items()}
+    config = attrs.pop("config", None)
     parts += ["<h2 id='config'>Configuration and metadata</h2>",
               "<h3>Estimate metadata (df.attrs)</h3>",
-              _kv_table({str(k): v for k, v in estimate.attrs.items()}, "attrs-table"),
-              "<h3>Report metadata</h3>", _kv_table(dict(metadata or {}), "metadata-table")]
+              _kv_table({k: _readable(v) for k, v in attrs.items()}, "attrs-table")]
+    if config is not None:
+        parts += ["<h3>Pipeline configuration</h3>", _config_table(config)]
+    parts += ["<h3>Report metadata</h3>", _kv_table(dict(metadata or {}), "metadata-table")]
     doc = ("<!DOCTYPE html>\n<html lang='en'><head><meta charset='utf-8'>"
            f"<title>{html.escape(page_title)}</title><style>{_CSS}</style>"
            f"<script type='text/javascript'>{plotly_js}</script></head><body>\n"

@@ -22,7 +22,9 @@ __all__ = [
     "CORNER_NAMES",
     "ERROR_ALPHA",
     "GRID",
+    "INVALID_ALPHA",
     "QUANTITY_LABELS",
+    "REASON_COLORS",
     "REFERENCE_COLOR",
     "SIGMA_ALPHA",
     "axis_label",
@@ -49,6 +51,21 @@ SIGMA_ALPHA = 0.22
 
 ERROR_ALPHA = 0.9
 """Opacity of an error trace (estimate − reference, in its corner's colour)."""
+
+REASON_COLORS: dict[str, str] = {
+    "not converged": "#9E9E9E",   # grey
+    "standstill": "#F0E442",      # yellow
+    "reverse": "#56B4E9",         # sky blue
+    "high slip": "#E41A1C",       # red
+    "unobservable": "#8E7CC3",    # violet
+    "input faulty": "#6B4226",    # brown
+    "v_y unverified": "#FF7F00",  # orange
+}
+"""Colour of a shaded "not valid" band, by the first of its reasons
+(:data:`vestim.estimators.validity.REASONS` names)."""
+
+INVALID_ALPHA = 0.16
+"""Opacity of a "not valid" band behind a time plot."""
 
 CORNER_NAMES: dict[str, str] = {"fl": "front left", "fr": "front right",
                                 "rl": "rear left", "rr": "rear right"}

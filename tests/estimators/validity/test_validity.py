@@ -101,3 +101,20 @@ def test_params_are_packed_from_the_config_and_reach_the_kernel() -> None:
             one(2.0), np.array([False]))
     assert validity(*args, ValidityParams())["reason_slip"][0] == 0.0
     assert validity(*args, ValidityParams(standstill_speed=1.0))["reason_slip"][0] == STANDSTILL
+
+
+def test_reason_names_decode_every_bit() -> None:
+    """Each bit decodes to its REASONS name, in bit order; a mask of several bits to all of
+    them; 0 to none; a bit no reason has, a fraction or a negative value is an error."""
+    from vestim.estimators.validity import REASONS, reason_names
+
+    for bit, name in REASONS.items():
+        assert reason_names(bit) == [name]
+    assert reason_names(1 + 8 + 64) == ["not converged", "high slip", "v_y unverified"]
+    assert reason_names(0.0) == [] and reason_names(float(sum(REASONS))) == list(REASONS.values())
+    with pytest.raises(ValueError, match="holds bit"):
+        reason_names(128)
+    with pytest.raises(ValueError, match="not a non-negative whole number"):
+        reason_names(1.5)
+    with pytest.raises(ValueError, match="not a non-negative whole number"):
+        reason_names(-1)

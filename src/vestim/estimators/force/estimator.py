@@ -11,7 +11,7 @@ the same compiled kernels on the same state, so a log fed sample by sample
 gives exactly the batch result. Only measured channels are read — never
 ``ref_`` columns.
 
-Missing channels (``shared/spec/log-format.md``; the gap of 001 Sec. VI):
+Missing channels (docs/format.md; the gap of 001 Sec. VI):
 
 * no ``torque_*`` (all four absent; a partial set is an error): the net wheel
   torques are reconstructed from the chassis equation and the drivetrain / brake
@@ -280,7 +280,7 @@ def inputs_from_log(log: pd.DataFrame, vehicle: Vehicle) -> Inputs:
     missing = [c for c in REQUIRED if c not in log.columns]
     if missing:
         raise LogFormatError(f"the force estimators need column(s) {', '.join(missing)}; "
-                             "add them to the log (see shared/spec/log-format.md)")
+                             "add them to the log (see docs/format.md)")
     cols = set(log.columns)
     has_torque = check_torques(cols, "log")
     has_omega = check_speeds(cols, "log")

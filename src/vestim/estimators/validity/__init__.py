@@ -170,3 +170,21 @@ def validity(t: np.ndarray, t_start: float, vx: np.ndarray, slip_ratio: np.ndarr
         out[f"valid_{group}"] = valid[:, j]
         out[f"reason_{group}"] = reason[:, j]
     return out
+
+
+def reason_names(mask: float) -> list[str]:
+    """The reasons of a ``reason_<group>`` bit mask, lowest bit first (:data:`REASONS`):
+    ``reason_names(3)`` → ``["not converged", "standstill"]``; ``[]`` for 0 (valid).
+
+    Raises:
+        ValueError: ``mask`` is negative, not a whole number, or holds a bit no reason has.
+    """
+    value = float(mask)
+    if not (value >= 0 and value == int(value)):
+        raise ValueError(f"reason mask {mask!r} is not a non-negative whole number")
+    bits = int(value)
+    unknown = bits & ~sum(REASONS)
+    if unknown:
+        raise ValueError(f"reason mask {bits} holds bit(s) {unknown} that no reason has; "
+                         f"known bits: {', '.join(f'{b} {n}' for b, n in REASONS.items())}")
+    return [name for bit, name in REASONS.items() if bits & bit]

@@ -69,7 +69,7 @@ def corner_inputs(log: pd.DataFrame, forces: pd.DataFrame, vehicle: Vehicle,
     missing = [c for c in REQUIRED if c not in log.columns]
     if missing:
         raise LogFormatError(f"the corner velocity observers need column(s) {', '.join(missing)} "
-                             "in the log (see shared/spec/log-format.md)")
+                             "in the log (see docs/format.md)")
     missing = [c for c in FORCE_COLUMNS if c not in forces.columns]
     if missing:
         raise LogFormatError(f"the force-stage frame lacks {', '.join(missing)}; pass the output "
