@@ -4,20 +4,11 @@ compiled 1-state UKF over four corners measured in the same process.
 Run:  .venv/bin/python benchmarks/stage_times.py [--samples 720000]
 
 One hour of 200 Hz (the simulator's dlc_snow tiled), best of 3. Every stage runs inside the
-one compiled composition (``vestim.pipeline.rows.pipeline_rows``), so a stage's cost is read
-by difference between configurations of that composition on the same log, each the same
-call with one stage swapped for a cheaper one:
-
-- longitudinal force UKF: force ``ukf`` against ``naive`` (a finite difference);
-- reference filter: velocity ``reference`` against ``kinematic`` (an integrator);
-- corner observers and their fusion: velocity ``kf`` against ``reference``;
-- the fused filter's second reference filter: ``fused`` against ``kf`` (on dlc_snow the
-  corners rarely all slip, so this is mostly the copy of the plain filter's state);
-- the rest of the composition (attitude, normal loads, lateral force UKF, the cornering
-  stiffness, GNSS calibration, friction, validity, uncertainty): ``kinematic`` with force
-  ``naive``;
-- the health stages and the input/output framing of ``Pipeline.run`` around the call:
-  measured directly.
+one compiled composition (``vestim.pipeline.rows.pipeline_rows``); here each stage's kernel
+is also run alone, through its estimator's own entry point, on the same log's inputs (the
+force stage's outputs feeding the velocity stages), and "composition" is what the pipeline
+costs beyond the sum: the kinematics between the stages, the copies into blocks, the
+output framing.
 """
 
 from __future__ import annotations
@@ -25,13 +16,27 @@ from __future__ import annotations
 import argparse
 import time
 from collections.abc import Callable
+from dataclasses import replace
 from typing import Any
 
 import numpy as np
 import pandas as pd
 from numba import njit
 
-from vestim.estimators.health import imu_health_kernel, wheel_health_kernel
+from vestim.constants import CORNERS
+from vestim.estimators.force import ForceEstimator
+from vestim.estimators.force.estimator import inputs_from_log
+from vestim.estimators.friction import friction_potential, new_friction_state
+from vestim.estimators.health import imu_health_kernel, new_imu_state, wheel_health_kernel
+from vestim.estimators.health import new_state as new_health_state
+from vestim.estimators.uncertainty import uncertainty
+from vestim.estimators.validity import validity
+from vestim.estimators.velocity.corner import CornerVelocityEstimator, CornerVelocityInput
+from vestim.estimators.velocity.reference import (
+    ReferenceFilter,
+    axle_slip_angles,
+    new_stiffness_state,
+)
 from vestim.filters.ukf import sigma_points, ukf_weights
 from vestim.io import load_vehicle
 from vestim.pipeline import Pipeline, PipelineConfig
@@ -97,48 +102,91 @@ def main() -> None:
     bare()
     t_bare = best_of(bare) / steps * 1e9
 
-    times: dict[str, float] = {}
-    for name, cfg in (("default", PipelineConfig()),
-                      ("fused", PipelineConfig(velocity="fused")),
-                      ("kf", PipelineConfig(velocity="kf")),
-                      ("reference", PipelineConfig(velocity="reference")),
-                      ("kinematic", PipelineConfig(velocity="kinematic")),
-                      ("kinematic+naive", PipelineConfig(velocity="kinematic", force="naive"))):
-        pipe = Pipeline(veh, cfg)
-        pipe.run(big.iloc[:2000])  # compile
-        times[name] = best_of(lambda pipe=pipe: pipe.run(big)) / steps * 1e9
-
     pipe = Pipeline(veh)
-    u_omega = np.ascontiguousarray(z)
-    t_ = big["t"].to_numpy()
-    delta = np.zeros((n, 4))
-    delta[:, 0] = big["delta_fl"].to_numpy()
-    delta[:, 1] = big["delta_fr"].to_numpy()
-    omega_out, health = np.empty_like(u_omega), np.empty_like(u_omega)
+    pipe.run(big.iloc[:2000])  # compile
+    total = best_of(lambda: pipe.run(big)) / steps * 1e9
+
+    u = inputs_from_log(big, veh)
+    delta = np.ascontiguousarray(u.delta)
+    omega_out, health = np.empty_like(u.omega), np.empty_like(u.omega)
     imu, imu_health = np.empty((3, n)), np.empty((n, 3))
-    from vestim.estimators.health import new_imu_state
-    from vestim.estimators.health import new_state as new_health_state
 
     def health_stages() -> None:
-        wheel_health_kernel(pipe._health_prm, new_health_state(), t_, u_omega, omega_out, health)
-        imu_health_kernel(pipe._imu_prm, new_imu_state(), t_, big["ax"].to_numpy(),
-                          big["ay"].to_numpy(), big["yaw_rate"].to_numpy(), omega_out, delta,
-                          imu[0], imu[1], imu[2], imu_health)
+        wheel_health_kernel(pipe._health_prm, new_health_state(), u.t, u.omega, omega_out,
+                            health)
+        imu_health_kernel(pipe._imu_prm, new_imu_state(), u.t, u.ax, u.ay, u.yaw_rate,
+                          omega_out, delta, imu[0], imu[1], imu[2], imu_health)
 
-    health_stages()
-    t_health = best_of(health_stages) / steps * 1e9
+    cfg = PipelineConfig()
+    force = ForceEstimator(veh, cfg.force_config())
+    res = force.advance(replace(u))
 
-    rows = [
-        ("longitudinal force UKF (ukf − naive)",
-         times["kinematic"] - times["kinematic+naive"]),
-        ("reference filter (reference − kinematic)", times["reference"] - times["kinematic"]),
-        ("corner observers + fusion (kf − reference)", times["kf"] - times["reference"]),
-        ("fused filter (fused − kf)", times["fused"] - times["kf"]),
-        ("health stages (wheel, IMU)", t_health),
-        ("the rest (kinematic + naive, less the health stages)",
-         times["kinematic+naive"] - t_health),
-    ]
-    total = times["default"]
+    def force_stage() -> None:
+        force.reset()
+        force.advance(replace(u))
+
+    fz = res["fz"]
+    mu_x = np.ascontiguousarray(np.where(fz > 1.0, res["fx"] / fz, 0.0))
+    axle, c_y = np.empty((n, 2)), np.empty(n)
+
+    def stiffness() -> None:
+        axle_slip_angles(pipe._stiff_prm, new_stiffness_state(), u.t, u.omega, u.yaw_rate,
+                         delta, res["fy"], res["fz"], axle, c_y)
+
+    stiffness()
+    b = veh.body
+    ref = ReferenceFilter(b.wheel_radius, b.lf, b.lr, pipe._xw, pipe._yw, cfg.reference,
+                          mass=b.mass)
+    vel = ref.advance(u.t, u.omega, u.torque, mu_x, axle, res["f_x"], res["f_y"], u.yaw_rate,
+                      delta, fy_sd=res["fy_sd"])
+
+    def reference_filter() -> None:
+        ref.reset()
+        ref.advance(u.t, u.omega, u.torque, mu_x, axle, res["f_x"], res["f_y"], u.yaw_rate,
+                    delta, fy_sd=res["fy_sd"])
+
+    est = pipe.run(big)
+    corner = CornerVelocityEstimator(veh, "lugre_kf")
+    a_xt = np.repeat(res["f_x"][:, None], 4, axis=1)
+    a_yt = np.repeat(res["f_y"][:, None], 4, axis=1)
+    vyt = est[[f"vyt_{c}" for c in CORNERS]].to_numpy()
+    mu_y = np.ascontiguousarray(np.where(fz > 1.0, res["fy"] / fz, 0.0))
+    inp = CornerVelocityInput(t=u.t, omega=u.omega, mu_x=mu_x, a_xt=a_xt, delta=delta,
+                              yaw_rate=u.yaw_rate, mu_y=mu_y, a_yt=a_yt, vyt=vyt)
+
+    def corner_observers() -> None:
+        corner.reset()
+        corner.advance(inp)
+
+    v = np.ascontiguousarray(vel["v"])
+    sr = np.ascontiguousarray(est[[f"slip_ratio_{c}" for c in CORNERS]].to_numpy())
+    sa = np.ascontiguousarray(est[[f"slip_angle_{c}" for c in CORNERS]].to_numpy())
+    vxt = np.ascontiguousarray(est[[f"vxt_{c}" for c in CORNERS]].to_numpy())
+    sig_a = np.full(n, 0.01)
+
+    def friction() -> None:
+        friction_potential(pipe._friction_prm, new_friction_state(), u.t, res["fx"], res["fy"],
+                           res["fz"], res["sigma_fx"], res["sigma_fy"], sr, sa, sig_a, c_y)
+
+    def sigma() -> None:
+        uncertainty(u.t, v, vel["sigma"], delta, u.omega, u.ax, u.ay, res["fz"], vxt,
+                    np.ascontiguousarray(vyt), sr, c_y, pipe._unc_prm)
+
+    def flags() -> None:
+        validity(u.t, float(u.t[0]), v[:, 0], sr, sa, delta[:, :2], u.ay, np.zeros(n, bool),
+                 cfg.validity, vel["bias"][:, 3].copy())
+
+    rows = []
+    for name, fn in (("force stage (attitude, loads, longitudinal and lateral UKFs)",
+                      force_stage), ("reference filter", reference_filter),
+                     ("corner observers (LuGre KF)", corner_observers),
+                     ("health stages (wheel, IMU)", health_stages),
+                     ("friction potential", friction), ("uncertainty (σ)", sigma),
+                     ("validity flags", flags), ("cornering stiffness", stiffness)):
+        fn()
+        rows.append((name, best_of(fn) / steps * 1e9))
+    rows.append(("composition (the rest: kinematics, blocks, framing; the fused filter's "
+                 "state copy)", total - sum(ns for _, ns in rows)))
     print(f"default Pipeline.run, {n} samples: {total * steps / 1e9:.3f} s = {total:.0f} ns "
           f"per corner-step = {total / t_bare:.0f}x the bare 1-state UKF ({t_bare:.1f} ns)")
     print("| stage | ns per corner-step | share | × bare UKF |")
