@@ -63,9 +63,14 @@ from vestim.estimators.uncertainty import (
 )
 from vestim.estimators.validity import GROUPS as VALIDITY_GROUPS
 from vestim.estimators.validity import ValidityKernelParams, validity_step
+from vestim.estimators.velocity.corner import CornerVelocityEstimator, corner_rows
+from vestim.estimators.velocity.corner_common import (
+    CornerInputs,
+    CornerOutputs,
+    CornerParams,
+    CornerState,
+)
 from vestim.estimators.velocity.kinematic import kinematic_kernel
-from vestim.estimators.velocity.lpv_observer import lpv_kernel
-from vestim.estimators.velocity.lugre_kf import KFParams, lugre_kf_kernel
 from vestim.estimators.velocity.reference import (
     RadiusKernelParams,
     RadiusState,
@@ -224,64 +229,6 @@ class ForceState(NamedTuple):
     inertia: LongitudinalState  # the longitudinal method on zero torque: the chassis
     # torques' ω̇ (logs without torques)
     hold_state: np.ndarray  # the speed between gnss_speed fixes (logs without wheel speeds)
-
-
-class CornerParams(NamedTuple):
-    """The corner observer's parameters: ``lpv`` (the LPV observer,
-    :func:`~vestim.estimators.velocity.lpv_observer.lpv_kernel`) or the LuGre KF/UKF
-    (:func:`~vestim.estimators.velocity.lugre_kf.lugre_kf_kernel`); the tire's κ, σ0, σ1, σ2
-    (x and y), the KF's noise, the LPV's gains, the high-slip detector's."""
-
-    lpv: bool
-    xw: np.ndarray  # corner positions ahead of the CG, m
-    kappa: float
-    sigma0: float
-    sigma1: float
-    sigma2: float
-    r: float
-    r_high: float
-    step_ref: float
-    lam_u: float
-    lam_l: float
-    beta_e: float
-    wdot_th: float
-    min_speed: float
-    mu_release: float
-    q: np.ndarray
-    q_high: np.ndarray
-    p0: np.ndarray
-    release_window: int
-    use_ukf: bool
-    wm: np.ndarray
-    wc: np.ndarray
-    tau: float
-    kappa_y: float
-    sigma0_y: float
-    sigma1_y: float
-    sigma2_y: float
-    gx_w: np.ndarray  # the LPV's gain schedules (ω grid, L1, L2), longitudinal and lateral
-    gx_1: np.ndarray
-    gx_2: np.ndarray
-    lateral: bool
-    gy_w: np.ndarray
-    gy_1: np.ndarray
-    gy_2: np.ndarray
-
-
-class CornerState(NamedTuple):
-    """The corner observer's states (shared with :class:`~vestim.estimators.velocity.corner.
-    CornerVelocityEstimator`): the KF's ``x``, ``P``, the LPV's ``xx``, ``xy``."""
-
-    x: np.ndarray
-    P: np.ndarray
-    xx: np.ndarray
-    xy: np.ndarray
-    hold: np.ndarray
-    acc: np.ndarray
-    stats: np.ndarray
-    w_buf: np.ndarray
-    t_buf: np.ndarray
-    ring: np.ndarray
 
 
 class VelocityParams(NamedTuple):
@@ -669,33 +616,17 @@ def _corners_vx(P: Params, S: State, t: np.ndarray, omega: np.ndarray, delta: np
     vyt_in = np.empty((m, 4))
     rotate_kernel(vx_i.reshape(-1), vy_i.reshape(-1), delta.reshape(-1), 1.0,
                   vxt_g.reshape(-1), vyt_in.reshape(-1))
-    hint = np.zeros((m, 4), dtype=np.bool_)
-    k_vxt = np.empty((m, 4))
-    k_vyt = np.zeros((m, 4))  # the KFs have no lateral state
-    k_high = np.empty((m, 4), dtype=np.bool_)
-    k_vr = np.empty((m, 4))
-    k_z = np.empty((m, 4))
-    k_zd = np.empty((m, 4))
-    if cp.lpv:
-        lpv_kernel(t, omega, mu_x, mu_y, a_xt, a_yt, delta, r, hint, vyt_in, radius, cp.kappa,
-                   cp.sigma0, cp.sigma1, cp.sigma2, cp.kappa_y, cp.sigma0_y, cp.sigma1_y,
-                   cp.sigma2_y, cp.xw, cp.gx_w, cp.gx_1, cp.gx_2, cp.lateral, cp.gy_w, cp.gy_1,
-                   cp.gy_2, cp.lam_u, cp.lam_l, cp.beta_e, cp.wdot_th, cp.min_speed,
-                   cp.mu_release, cp.release_window, cs.xx, cs.xy, cs.hold, cs.acc, cs.stats,
-                   cs.w_buf, cs.t_buf, cs.ring, k_vxt, k_vyt, k_high, k_vr, k_z, k_zd,
-                   np.empty((m, 4)))
+    k = CornerOutputs(np.empty((m, 4)), np.zeros((m, 4)), np.empty((m, 4)),
+                      np.empty((m, 4), dtype=np.bool_), np.empty((m, 4)), np.empty((m, 4)),
+                      np.empty((m, 4)), np.empty((m, 4)), np.empty((m, 4)))
+    corner_rows(cp, cs, CornerInputs(t, omega, mu_x, mu_y, a_xt, a_yt, delta, r,
+                                     np.zeros((m, 4), dtype=np.bool_), vyt_in), k)
+    k_vxt, k_vyt, k_high = k.vxt, k.vyt, k.high
+    if cp.lpv:  # the KFs leave v_yt at 0; the LPV's is NaN without its lateral observer
         for i in range(m):
             for c in range(4):
                 if np.isnan(k_vyt[i, c]):
                     k_vyt[i, c] = 0.0
-    else:
-        lugre_kf_kernel(t, omega, mu_x, a_xt, a_yt, delta, r, hint, vyt_in, radius,
-                        cp.kappa, cp.sigma0, cp.sigma1, cp.sigma2, cp.xw, cp.q, cp.r,
-                        cp.q_high, cp.r_high, cp.p0, cp.step_ref, cp.lam_u, cp.lam_l,
-                        cp.beta_e, cp.wdot_th, cp.min_speed, cp.mu_release, cp.release_window,
-                        cp.use_ukf, cp.wm, cp.wc, cp.tau, cs.x, cs.P, cs.hold, cs.acc,
-                        cs.stats, cs.w_buf, cs.t_buf, cs.ring, k_vxt, np.empty((m, 4)),
-                        k_high, k_vr, k_z, k_zd)
     vxr_i, vyr_i = transport_kernel(v_ref[:, 0].copy(), vyr, r, xw, yw, 1.0)
     vxt_r = np.empty((m, 4))
     vyt_r = np.empty((m, 4))
@@ -813,39 +744,10 @@ def _post(p: PostParams, st: PostState, x: np.ndarray, t: np.ndarray, ax: np.nda
 
 
 def _corner_trees(pipe: Pipeline) -> tuple[CornerParams, CornerState]:
-    """The corner observer's parameter and state trees (typed placeholders, never read,
-    where the velocity method runs none)."""
-    corner = pipe.corner
-    z1, z2 = np.zeros(1), np.zeros((1, 1))
-    if corner is None:
-        return (CornerParams(False, z1, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0,
-                             0.0, 0.0, z1, z1, z1, 0, False, z1, z1, 0.0, 0.0, 0.0, 0.0, 0.0,
-                             z1, z1, z1, False, z1, z1, z1),
-                CornerState(z2, np.zeros((1, 1, 1)), z2, z2, z2, z1, z1, z2, z1,
-                            np.zeros(1, dtype=np.int64)))
-    tire = pipe.vehicle.tire
-    kp = corner.params
-    hs = corner._slip
-    if isinstance(kp, KFParams):
-        kf = (kp.r, kp.r_high, kp.step_ref)
-        kf_arrays = (np.array(kp.q), np.array(kp.q_high), np.array(kp.p0))
-        gx = gy = (z1, z1, z1)
-        lateral = False
-    else:
-        kf, kf_arrays = (0.0, 0.0, 0.0), (z1, z1, z1)
-        gx, gy = corner._gx, corner._gy
-        lateral = kp.lateral is not None
-    params = CornerParams(
-        not isinstance(kp, KFParams), corner._xw, tire.kappa_x, tire.sigma0_x, tire.sigma1_x,
-        tire.sigma2_x, *kf, hs.lambda_upper, hs.lambda_lower, hs.beta_e,
-        hs.omega_dot_threshold, hs.min_speed, hs.mu_release, *kf_arrays,
-        int(hs.release_window), corner.method == "lugre_ukf", corner._wm, corner._wc,
-        float(corner._tau), tire.kappa_y, tire.sigma0_y, tire.sigma1_y, tire.sigma2_y, *gx,
-        lateral, *gy)
-    state = CornerState(corner._x, corner._P, corner._xx, corner._xy, corner._hold,
-                        corner._acc_buf, corner._stats, corner._w_buf, corner._t_buf,
-                        corner._ring)
-    return params, state
+    """The corner observer's parameter and state trees (those of an idle LuGre KF, never
+    read, where the velocity method runs none)."""
+    corner = pipe.corner or CornerVelocityEstimator(pipe.vehicle)
+    return corner.kernel_params, corner.state
 
 
 def covers(pipe: Pipeline) -> bool:

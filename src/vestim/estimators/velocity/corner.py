@@ -48,9 +48,16 @@ import math
 from dataclasses import dataclass, field, fields
 
 import numpy as np
+from numba import njit
 
 from vestim.constants import CORNERS
-from vestim.estimators.velocity.corner_common import new_hold
+from vestim.estimators.velocity.corner_common import (
+    CornerInputs,
+    CornerOutputs,
+    CornerParams,
+    CornerState,
+    new_hold,
+)
 from vestim.estimators.velocity.corner_slip import HighSlipParams
 from vestim.estimators.velocity.lpv_observer import (
     GAINS_001_X,
@@ -194,6 +201,45 @@ class CornerVelocityOutput:
         return out
 
 
+def corner_params(vehicle: Vehicle, method: str,
+                  params: KFParams | LPVParams) -> CornerParams:
+    """The kernels' parameter tree of a corner observer (``method`` one of :data:`METHODS`,
+    ``params`` of its kind): the vehicle's [tire] and geometry, the method's own values, and
+    placeholders for the other method's fields."""
+    tire = vehicle.tire
+    hs = params.high_slip
+    z1 = np.zeros(1)
+    wm, wc, tau = ukf_weights(3)
+    if isinstance(params, KFParams):
+        kf = (float(params.r), float(params.r_high), float(params.step_ref))
+        kf_arrays = (np.array(params.q), np.array(params.q_high), np.array(params.p0))
+        gx = gy = (z1, z1, z1)
+        lateral = False
+    else:
+        kf, kf_arrays = (0.0, 0.0, 0.0), (z1, z1, z1)
+        gx = params.longitudinal.innovation_gains(tire.sigma1_x)
+        # placeholder arrays when the lateral observer is off
+        gy = (params.lateral or GAINS_001_Y).innovation_gains(tire.sigma1_y)
+        lateral = params.lateral is not None
+    return CornerParams(
+        method == "lpv", float(vehicle.body.wheel_radius),
+        np.ascontiguousarray(corner_positions(vehicle)[0]), tire.kappa_x, tire.sigma0_x,
+        tire.sigma1_x, tire.sigma2_x, *kf, hs.lambda_upper, hs.lambda_lower, hs.beta_e,
+        hs.omega_dot_threshold, hs.min_speed, hs.mu_release, *kf_arrays,
+        int(hs.release_window), method == "lugre_ukf", wm, wc, float(tau), tire.kappa_y,
+        tire.sigma0_y, tire.sigma1_y, tire.sigma2_y, *gx, lateral, *gy)
+
+
+@njit(cache=True, error_model="numpy")
+def corner_rows(p: CornerParams, s: CornerState, inp: CornerInputs, out: CornerOutputs) -> None:
+    """The corner observer ``p`` names (LPV, else the LuGre KF/UKF) over a chunk, in place on
+    ``s`` and ``out``."""
+    if p.lpv:
+        lpv_kernel(p, s, inp, out)
+    else:
+        lugre_kf_kernel(p, s, inp, out)
+
+
 class CornerVelocityEstimator:
     """Tire-model-based corner velocity observer, four corners, online or batch.
 
@@ -226,20 +272,15 @@ class CornerVelocityEstimator:
         self.method = method
         self.params: KFParams | LPVParams = params
         self._radius = vehicle.body.wheel_radius
-        self._xw = np.ascontiguousarray(corner_positions(vehicle)[0])
-        self._wm, self._wc, self._tau = ukf_weights(3)
-        if isinstance(params, LPVParams):
-            tire = vehicle.tire
-            self._gx = params.longitudinal.innovation_gains(tire.sigma1_x)
-            lat = params.lateral or GAINS_001_Y  # placeholder arrays when the lateral is off
-            self._gy = lat.innovation_gains(tire.sigma1_y)
+        self.kernel_params = corner_params(vehicle, method, params)
+        """The kernels' parameter tree (:class:`~.corner_common.CornerParams`)."""
         self.reset()
 
     @property
     def covariance(self) -> np.ndarray:
         """Copy of the Kalman methods' current covariance P (4, 3, 3) over [z̄_x, v_rx, ż̄_x];
         zeros for ``lpv`` and before the first sample."""
-        return self._P.copy()
+        return self.state.P.copy()
 
     @property
     def _slip(self) -> HighSlipParams:
@@ -248,16 +289,11 @@ class CornerVelocityEstimator:
     def reset(self) -> None:
         """Forget all states; the next sample initialises them (free rolling, v_r = 0)."""
         hs = self._slip
-        self._x = np.zeros((4, 3))
-        self._P = np.zeros((4, 3, 3))
-        self._xx = np.zeros((4, 2))
-        self._xy = np.zeros((4, 2))
-        self._hold = new_hold()
-        self._acc_buf = np.zeros(hs.accel_window)
-        self._stats = np.zeros(3)
-        self._w_buf = np.zeros((hs.omega_dot_window, 4))
-        self._t_buf = np.zeros(hs.omega_dot_window)
-        self._ring = np.zeros(3, dtype=np.int64)
+        self.state = CornerState(
+            x=np.zeros((4, 3)), P=np.zeros((4, 3, 3)), xx=np.zeros((4, 2)),
+            xy=np.zeros((4, 2)), hold=new_hold(), acc=np.zeros(hs.accel_window),
+            stats=np.zeros(3), w_buf=np.zeros((hs.omega_dot_window, 4)),
+            t_buf=np.zeros(hs.omega_dot_window), ring=np.zeros(3, dtype=np.int64))
         self._t_last = -math.inf
 
     def advance(self, inp: CornerVelocityInput) -> CornerVelocityOutput:
@@ -267,51 +303,22 @@ class CornerVelocityEstimator:
         if finite.size and finite[0] <= self._t_last:
             raise ValueError(f"CornerVelocityInput.t starts at {finite[0]} s, not after the last "
                              f"sample already processed ({self._t_last} s); call reset() first")
-        tire = self.vehicle.tire
-        hs = self._slip
-        vxt = np.empty((n, 4))
-        sig = np.empty((n, 4))
-        high = np.empty((n, 4), dtype=np.bool_)
-        vrx = np.empty((n, 4))
-        zx = np.empty((n, 4))
+        if (self.method == "lpv" and self.kernel_params.lateral
+                and np.all(np.isnan(inp.mu_y))):
+            raise ValueError("the lateral LPV observer needs mu_y (and a_yt); give them in "
+                             "CornerVelocityInput or use LPVParams(lateral=None)")
         nan4 = np.full((n, 4), np.nan)
-        if isinstance(self.params, KFParams):
-            p = self.params
-            zd = np.empty((n, 4))
-            lugre_kf_kernel(
-                inp.t, inp.omega, inp.mu_x, inp.a_xt, inp.a_yt, inp.delta, inp.yaw_rate,
-                inp.high_slip_hint, inp.vyt, self._radius, tire.kappa_x, tire.sigma0_x,
-                tire.sigma1_x, tire.sigma2_x, self._xw, np.array(p.q), p.r, np.array(p.q_high),
-                p.r_high, np.array(p.p0),
-                p.step_ref, hs.lambda_upper, hs.lambda_lower, hs.beta_e, hs.omega_dot_threshold,
-                hs.min_speed, hs.mu_release, hs.release_window, self.method == "lugre_ukf",
-                self._wm, self._wc, self._tau,
-                self._x, self._P, self._hold, self._acc_buf, self._stats, self._w_buf,
-                self._t_buf, self._ring, vxt, sig, high, vrx, zx, zd)
-            out = CornerVelocityOutput(vxt, nan4, sig, nan4.copy(), high, vrx, zx, zd,
-                                       nan4.copy(), nan4.copy())
-        else:
-            lateral = self.params.lateral is not None
-            vyt = np.empty((n, 4))
-            vry = np.empty((n, 4))
-            zy = np.empty((n, 4))
-            if lateral and np.all(np.isnan(inp.mu_y)):
-                raise ValueError("the lateral LPV observer needs mu_y (and a_yt); give them in "
-                                 "CornerVelocityInput or use LPVParams(lateral=None)")
-            lpv_kernel(
-                inp.t, inp.omega, inp.mu_x, inp.mu_y, inp.a_xt, inp.a_yt, inp.delta,
-                inp.yaw_rate, inp.high_slip_hint, inp.vyt, self._radius, tire.kappa_x,
-                tire.sigma0_x, tire.sigma1_x, tire.sigma2_x, tire.kappa_y, tire.sigma0_y,
-                tire.sigma1_y, tire.sigma2_y, self._xw, *self._gx, lateral, *self._gy,
-                hs.lambda_upper, hs.lambda_lower, hs.beta_e, hs.omega_dot_threshold,
-                hs.min_speed, hs.mu_release, hs.release_window, self._xx, self._xy, self._hold,
-                self._acc_buf, self._stats, self._w_buf, self._t_buf, self._ring, vxt, vyt, high, vrx,
-                zx, vry, zy)
-            sig[:] = np.nan
-            out = CornerVelocityOutput(vxt, vyt, sig, nan4, high, vrx, zx, nan4.copy(), vry, zy)
+        out = CornerOutputs(vxt=nan4.copy(), vyt=nan4.copy(), sigma=nan4.copy(),
+                            high=np.zeros((n, 4), dtype=np.bool_), vrx=nan4.copy(),
+                            zx=nan4.copy(), zdot=nan4.copy(), vry=nan4.copy(), zy=nan4.copy())
+        corner_rows(self.kernel_params, self.state,
+                    CornerInputs(inp.t, inp.omega, inp.mu_x, inp.mu_y, inp.a_xt, inp.a_yt,
+                                 inp.delta, inp.yaw_rate, inp.high_slip_hint, inp.vyt), out)
+        result = CornerVelocityOutput(out.vxt, out.vyt, out.sigma, nan4, out.high, out.vrx,
+                                      out.zx, out.zdot, out.vry, out.zy)
         if finite.size:
             self._t_last = float(finite[-1])
-        return out
+        return result
 
     def run(self, inp: CornerVelocityInput) -> CornerVelocityOutput:
         """Reset, then process ``inp`` as one chunk."""

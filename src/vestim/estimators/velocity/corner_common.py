@@ -18,7 +18,7 @@ number of consecutive samples with |μ_x| below the high-slip release level.
 from __future__ import annotations
 
 import math
-from typing import Any
+from typing import Any, NamedTuple
 
 import numpy as np
 from numba import njit
@@ -27,6 +27,100 @@ _JIT: dict[str, Any] = {"cache": True, "error_model": "numpy"}
 
 H_W, H_D, H_AX, H_AY, H_MX, H_MY, H_R, H_T, H_REL = 0, 1, 2, 3, 4, 5, 6, 7, 8
 N_HOLD = 9
+
+
+class CornerParams(NamedTuple):
+    """A corner observer's parameters, whole (SI): ``lpv`` (the LPV observer) or the LuGre
+    KF/UKF (``use_ukf``); the wheel radius and corner positions; the tire's κ, σ0, σ1, σ2
+    (x and y); the KF's noise (``r``, ``r_high``, ``step_ref``, ``q``, ``q_high``, ``p0``)
+    and sigma-point weights; the LPV's gain schedules (ω grid, L1, L2, longitudinal and
+    lateral); the high-slip detector's (``lam_u`` … ``release_window``). Fields a method does
+    not use hold placeholders."""
+
+    lpv: bool
+    radius: float
+    xw: np.ndarray
+    kappa: float
+    sigma0: float
+    sigma1: float
+    sigma2: float
+    r: float
+    r_high: float
+    step_ref: float
+    lam_u: float
+    lam_l: float
+    beta_e: float
+    wdot_th: float
+    min_speed: float
+    mu_release: float
+    q: np.ndarray
+    q_high: np.ndarray
+    p0: np.ndarray
+    release_window: int
+    use_ukf: bool
+    wm: np.ndarray
+    wc: np.ndarray
+    tau: float
+    kappa_y: float
+    sigma0_y: float
+    sigma1_y: float
+    sigma2_y: float
+    gx_w: np.ndarray
+    gx_1: np.ndarray
+    gx_2: np.ndarray
+    lateral: bool
+    gy_w: np.ndarray
+    gy_1: np.ndarray
+    gy_2: np.ndarray
+
+
+class CornerState(NamedTuple):
+    """A corner observer's states: the KF's ``x`` (4, 3), ``P`` (4, 3, 3), the LPV's ``xx``,
+    ``xy`` (4, 2), the held inputs ``hold`` (:data:`N_HOLD`, 4) and the high-slip detector's
+    rings (``acc``, ``stats``, ``w_buf``, ``t_buf``, ``ring``)."""
+
+    x: np.ndarray
+    P: np.ndarray
+    xx: np.ndarray
+    xy: np.ndarray
+    hold: np.ndarray
+    acc: np.ndarray
+    stats: np.ndarray
+    w_buf: np.ndarray
+    t_buf: np.ndarray
+    ring: np.ndarray
+
+
+class CornerInputs(NamedTuple):
+    """A chunk of n samples for a corner observer: t (n,) s; omega, mu_x, mu_y, a_xt, a_yt,
+    delta (n, 4); yaw_rate (n,) rad/s; hint (n, 4) bool; vyt_in (n, 4) m/s (NaN: the
+    no-sideslip value)."""
+
+    t: np.ndarray
+    omega: np.ndarray
+    mu_x: np.ndarray
+    mu_y: np.ndarray
+    a_xt: np.ndarray
+    a_yt: np.ndarray
+    delta: np.ndarray
+    yaw_rate: np.ndarray
+    hint: np.ndarray
+    vyt_in: np.ndarray
+
+
+class CornerOutputs(NamedTuple):
+    """A corner observer's outputs (n, 4): v̂_xt, v̂_yt, the one-sigma of v̂_xt, the high-slip
+    flags, v̂_rx, ẑ_x, ż̂_x, v̂_ry, ẑ_y (what a method does not estimate is left as given)."""
+
+    vxt: np.ndarray
+    vyt: np.ndarray
+    sigma: np.ndarray
+    high: np.ndarray
+    vrx: np.ndarray
+    zx: np.ndarray
+    zdot: np.ndarray
+    vry: np.ndarray
+    zy: np.ndarray
 
 
 def new_hold() -> np.ndarray:

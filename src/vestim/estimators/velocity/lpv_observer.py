@@ -52,6 +52,10 @@ from vestim.estimators.velocity.corner_common import (
     H_R,
     H_T,
     H_W,
+    CornerInputs,
+    CornerOutputs,
+    CornerParams,
+    CornerState,
     count_release,
     pick,
     store,
@@ -243,25 +247,27 @@ def lpv_step(xs: np.ndarray, c: int, kr: float, s0: float, s1: float, s2: float,
 
 
 @njit(**_JIT)
-def lpv_kernel(
-    t: np.ndarray, omega: np.ndarray, mu_x: np.ndarray, mu_y: np.ndarray, a_xt: np.ndarray,
-    a_yt: np.ndarray, delta: np.ndarray, yaw_rate: np.ndarray, hint: np.ndarray,
-    vyt_in: np.ndarray, radius: float, kappa_x: float, s0x: float, s1x: float, s2x: float,
-    kappa_y: float, s0y: float, s1y: float, s2y: float, x_corner: np.ndarray,
-    gx_w: np.ndarray, gx_1: np.ndarray, gx_2: np.ndarray, lateral: bool, gy_w: np.ndarray,
-    gy_1: np.ndarray, gy_2: np.ndarray, lam_u: float, lam_l: float, beta_e: float,
-    wdot_th: float, min_speed: float, mu_release: float, release_window: int,
-    xx: np.ndarray, xy: np.ndarray, hold: np.ndarray, acc_buf: np.ndarray, stats: np.ndarray,
-    w_buf: np.ndarray, t_buf: np.ndarray, ring: np.ndarray,
-    out_vxt: np.ndarray, out_vyt: np.ndarray, out_high: np.ndarray, out_vrx: np.ndarray,
-    out_zx: np.ndarray, out_vry: np.ndarray, out_zy: np.ndarray,
-) -> None:
+def lpv_kernel(p: CornerParams, s: CornerState, inp: CornerInputs, out: CornerOutputs) -> None:
     """Advance the four corners' LPV observers over a chunk, in place on xx, xy (4, 2) and hold.
 
     Inputs as :func:`~.lugre_kf.lugre_kf_kernel` plus mu_y (n, 4); outputs (n, 4):
     v̂_xt, v̂_yt (NaN without lateral observer), high-slip flags (reported, not used),
     v̂_rx, ẑ_x, v̂_ry, ẑ_y. μ is held at the mean of the two samples of a step.
+    ``p``, ``s``, ``inp``, ``out``: :mod:`.corner_common`'s trees (``out.sigma`` and
+    ``out.zdot`` are not written).
     """
+    t, omega, mu_x, mu_y, a_xt = inp.t, inp.omega, inp.mu_x, inp.mu_y, inp.a_xt
+    a_yt, delta, yaw_rate, hint, vyt_in = inp.a_yt, inp.delta, inp.yaw_rate, inp.hint, inp.vyt_in
+    radius, kappa_x, s0x, s1x, s2x = p.radius, p.kappa, p.sigma0, p.sigma1, p.sigma2
+    kappa_y, s0y, s1y, s2y, x_corner = p.kappa_y, p.sigma0_y, p.sigma1_y, p.sigma2_y, p.xw
+    gx_w, gx_1, gx_2, lateral = p.gx_w, p.gx_1, p.gx_2, p.lateral
+    gy_w, gy_1, gy_2 = p.gy_w, p.gy_1, p.gy_2
+    lam_u, lam_l, beta_e, wdot_th = p.lam_u, p.lam_l, p.beta_e, p.wdot_th
+    min_speed, mu_release, release_window = p.min_speed, p.mu_release, p.release_window
+    xx, xy, hold, acc_buf, stats = s.xx, s.xy, s.hold, s.acc, s.stats
+    w_buf, t_buf, ring = s.w_buf, s.t_buf, s.ring
+    out_vxt, out_vyt, out_high, out_vrx = out.vxt, out.vyt, out.high, out.vrx
+    out_zx, out_vry, out_zy = out.zx, out.vry, out.zy
     n = t.shape[0]
     krx = kappa_x * radius
     kry = kappa_y * radius

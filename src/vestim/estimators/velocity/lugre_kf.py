@@ -58,6 +58,10 @@ from vestim.estimators.velocity.corner_common import (
     H_R,
     H_T,
     H_W,
+    CornerInputs,
+    CornerOutputs,
+    CornerParams,
+    CornerState,
     count_release,
     pick,
     store,
@@ -271,19 +275,8 @@ def _ukf_step(x: np.ndarray, P: np.ndarray, c: int, Ak: np.ndarray, Bk: np.ndarr
 
 
 @njit(**_JIT)
-def lugre_kf_kernel(
-    t: np.ndarray, omega: np.ndarray, mu_x: np.ndarray, a_xt: np.ndarray, a_yt: np.ndarray,
-    delta: np.ndarray, yaw_rate: np.ndarray, hint: np.ndarray, vyt_in: np.ndarray,
-    radius: float, kappa: float, sigma0: float, sigma1: float, sigma2: float,
-    x_corner: np.ndarray, q: np.ndarray, r: float, q_high: np.ndarray, r_high: float, p0: np.ndarray,
-    step_ref: float, lam_u: float, lam_l: float, beta_e: float, wdot_th: float,
-    min_speed: float, mu_release: float, release_window: int, use_ukf: bool, wm: np.ndarray,
-    wc: np.ndarray, tau: float,
-    x: np.ndarray, P: np.ndarray, hold: np.ndarray, acc_buf: np.ndarray, stats: np.ndarray,
-    w_buf: np.ndarray, t_buf: np.ndarray, ring: np.ndarray,
-    out_vxt: np.ndarray, out_sigma: np.ndarray, out_high: np.ndarray, out_vr: np.ndarray,
-    out_z: np.ndarray, out_zdot: np.ndarray,
-) -> None:
+def lugre_kf_kernel(p: CornerParams, s: CornerState, inp: CornerInputs,
+                    out: CornerOutputs) -> None:
     """Advance the four corner filters over a chunk of n samples, in place on the state arrays.
 
     Inputs: t (n,) s; omega, mu_x, a_xt, a_yt, delta (n, 4); yaw_rate (n,); hint (n, 4)
@@ -294,7 +287,20 @@ def lugre_kf_kernel(
 
     Samples with NaN t or ω give NaN outputs and leave the state untouched; NaN μ_x
     skips the update (prediction only); NaN accelerations, δ or r hold the last value.
+    ``p``, ``s``, ``inp``, ``out``: :mod:`.corner_common`'s trees (``out.vyt``, ``vry``,
+    ``zy`` are not written).
     """
+    t, omega, mu_x, a_xt, a_yt = inp.t, inp.omega, inp.mu_x, inp.a_xt, inp.a_yt
+    delta, yaw_rate, hint, vyt_in = inp.delta, inp.yaw_rate, inp.hint, inp.vyt_in
+    radius, kappa, sigma0, sigma1, sigma2 = p.radius, p.kappa, p.sigma0, p.sigma1, p.sigma2
+    x_corner, q, r, q_high, r_high, p0 = p.xw, p.q, p.r, p.q_high, p.r_high, p.p0
+    step_ref, lam_u, lam_l, beta_e, wdot_th = p.step_ref, p.lam_u, p.lam_l, p.beta_e, p.wdot_th
+    min_speed, mu_release, release_window = p.min_speed, p.mu_release, p.release_window
+    use_ukf, wm, wc, tau = p.use_ukf, p.wm, p.wc, p.tau
+    x, P, hold, acc_buf, stats = s.x, s.P, s.hold, s.acc, s.stats
+    w_buf, t_buf, ring = s.w_buf, s.t_buf, s.ring
+    out_vxt, out_sigma, out_high, out_vr = out.vxt, out.sigma, out.high, out.vrx
+    out_z, out_zdot = out.zx, out.zdot
     n = t.shape[0]
     kr = kappa * radius
     Ak = np.empty((3, 3))
