@@ -38,7 +38,12 @@ from vestim.estimators.force.estimator import (
     speed_hold,
     wheel_reference_speed,
 )
-from vestim.estimators.force.lateral import lateral_kernel, split_weights
+from vestim.estimators.force.lateral import (
+    LateralKernelParams,
+    LateralState,
+    lateral_kernel,
+    split_weights,
+)
 from vestim.estimators.force.longitudinal import (
     LongitudinalParams,
     LongitudinalState,
@@ -193,14 +198,13 @@ class Sensors(NamedTuple):
 
 
 class ForceParams(NamedTuple):
-    """The force stage's parameters (SI): the attitude, normal loads, longitudinal UKF
-    (``lon_*``, as :func:`~vestim.estimators.force.longitudinal.ukf_kernel`'s) and lateral
-    UKF (``lat_*``, as :func:`~vestim.estimators.force.lateral.lateral_kernel`'s)."""
+    """The force stage's parameters (SI): the attitude, normal loads, the longitudinal method
+    (:func:`~vestim.estimators.force.longitudinal.longitudinal_rows`'s) and the lateral UKF
+    (:func:`~vestim.estimators.force.lateral.lateral_kernel`'s)."""
 
     radius: float  # effective wheel radius, m
     rolling_moment: float  # rolling-resistance coefficient × radius, m
     drag_coef: float  # aerodynamic drag per speed², N s²/m²
-    yaw_inertia: float  # kg m²
     load_exponent: float  # the lateral split's load exponent
     slip_scale: float  # the lateral split's slip scale
     normal: NormalLoadKernelParams
@@ -209,11 +213,7 @@ class ForceParams(NamedTuple):
     lon: LongitudinalParams  # the longitudinal method (and the chassis torques' ω̇ filter)
     xw: np.ndarray  # corner positions ahead of the CG, m
     yw: np.ndarray  # corner positions left of the CG, m
-    lat_q: np.ndarray
-    lat_r: np.ndarray
-    lat_wm: np.ndarray
-    lat_wc: np.ndarray
-    lat_tau: float
+    lateral: LateralKernelParams
     chassis: ChassisKernelParams  # the wheel torques of a log without them
 
 
@@ -222,9 +222,7 @@ class ForceState(NamedTuple):
 
     attitude: np.ndarray
     lon: LongitudinalState
-    lat_x: np.ndarray
-    lat_cov: np.ndarray
-    lat_state: np.ndarray
+    lateral: LateralState
     ax_state: np.ndarray  # the wheel-speed a_x's filter (logs without ax)
     inertia: LongitudinalState  # the longitudinal method on zero torque: the chassis
     # torques' ω̇ (logs without torques)
@@ -431,9 +429,8 @@ def _block(P: Params, S: State, x: np.ndarray, Y: np.ndarray, k0: int) -> None:
     weights = split_weights(fz, omega, torque, r, radius, yw, fp.load_exponent, fp.slip_scale)
     fy = np.empty((m, 4))
     sig_fy = np.empty((m, 4))
-    lateral_kernel(t, fx, delta, weights, fxa, fya, r, drag, fz, speed, fp.normal.mass,
-                   fp.yaw_inertia, xw, yw, fp.lat_q, fp.lat_r, fp.lat_wm, fp.lat_wc,
-                   fp.lat_tau, fs.lat_x, fs.lat_cov, fs.lat_state, fy, sig_fy)
+    lateral_kernel(fp.lateral, fs.lateral, t, fx, delta, weights, fxa, fya, r, drag, fz, speed,
+                   fy, sig_fy)
     if not sensors.omega:  # per-corner F_x needs the wheels' own speeds
         fx[:] = np.nan
         sig_fx[:] = np.nan
@@ -774,13 +771,12 @@ def build(pipe: Pipeline, names: tuple[str, ...], sensors: Sensors) -> tuple[Par
     lon = fe._lon
     force_p = ForceParams(
         float(b.wheel_radius), float(fe.rolling_resistance * b.wheel_radius),
-        float(fe._drag_coef), float(b.yaw_inertia), float(lp.load_exponent),
-        float(lp.slip_scale), normal_load_params(veh), fe.config.normal == "dynamic",
-        fe._att_prm, lon.params, fe._xw, fe._yw,
-        fe._q_lat, fe._r_lat, fe._w4, fe._c4, float(fe._tau4), chassis_params(veh))
+        float(fe._drag_coef), float(lp.load_exponent), float(lp.slip_scale),
+        normal_load_params(veh), fe.config.normal == "dynamic", fe._att_prm, lon.params,
+        fe._xw, fe._yw, fe.lateral_params, chassis_params(veh))
     inertia = fe._lon_inertia  # the same method and parameters as lon, its own state
-    force_s = ForceState(fe._att, lon.state, fe._lat_x, fe._lat_P, fe._lat_state,
-                         fe._ax_state, inertia.state, fe._hold_state)
+    force_s = ForceState(fe._att, lon.state, fe.lateral_state, fe._ax_state, inertia.state,
+                         fe._hold_state)
     corner_p, corner_s = _corner_trees(pipe)
     fp = cfg.fusion_params
     ap = fp.adaptive

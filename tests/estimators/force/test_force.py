@@ -209,7 +209,13 @@ def test_ukf_rw_is_the_linear_kalman_filter_of_its_model():
     unscented transform is exact: its F̂_x and σ must equal a textbook Kalman filter's with
     the same Q = diag((Δt/I_w)² r_T, q_F Δt) and R = r_ω, to round-off (measured
     2e-13–1.6e-12 relative), over 300 noisy samples of a torque ramp."""
-    from vestim.estimators.force.longitudinal import ukf_rw_kernel
+    from vestim.estimators.force.longitudinal import (
+        METHODS,
+        LongitudinalParams,
+        LongitudinalState,
+        ukf_params,
+        ukf_rw_kernel,
+    )
     from vestim.filters.ukf import ukf_weights
 
     rng = np.random.default_rng(3)
@@ -222,8 +228,12 @@ def test_ukf_rw_is_the_linear_kalman_filter_of_its_model():
     x, P = np.zeros((4, 2)), np.zeros((4, 2, 2))
     hist_t, hist_w = np.full(10, np.nan), np.zeros((10, 4))
     fx, sig, high = np.empty((n, 4)), np.empty((n, 4)), np.empty((n, 4), dtype=bool)
-    ukf_rw_kernel(t, omega, torque, iw, radius, r_w, r_t, q_f, q_f, np.inf, p0, wm, wc, tau, x,
-                  P, hist_t, hist_w, np.zeros(4), fx, sig, high)
+    params = LongitudinalParams(METHODS.index("ukf_rw"), iw, radius,
+                                ukf_params(lon.UKFParams(), iw, radius), r_w, r_t, q_f, q_f,
+                                np.inf, p0, 0.0, 0.0, 0.0, 0.0, 0.0, wm, wc, tau)
+    state = LongitudinalState(x, P, hist_t, hist_w, np.zeros(4), np.zeros((3, 4)),
+                              np.zeros((3, 4)))
+    ukf_rw_kernel(params, state, t, omega, torque, fx, sig, high)
     A = np.array([[1.0, -dt * radius / iw], [0.0, 1.0]])
     Q = np.diag([(dt / iw) ** 2 * r_t, q_f * dt])
     for c in range(4):

@@ -501,11 +501,14 @@ class ForceEstimator:
         self.set_accelerometer(self.config.accelerometer)
         self._xw = np.array([b.lf, b.lf, -b.lr, -b.lr])
         self._yw = 0.5 * np.array([b.track_f, -b.track_f, b.track_r, -b.track_r])
-        self._w4, self._c4, self._tau4 = ukf_weights(4)
+        wm, wc, tau = ukf_weights(4)
         lp = self.config.lateral
-        self._q_lat = lat.lateral_q(lp, vehicle.tire.sigma0_y / vehicle.tire.kappa_y)
-        self._r_lat = np.array([(b.mass * lp.sigma_ax) ** 2, (b.mass * lp.sigma_ay) ** 2,
-                                lp.sigma_yaw**2, lp.sigma_split**2])
+        self.lateral_params = lat.LateralKernelParams(
+            float(b.mass), float(b.yaw_inertia), self._xw, self._yw,
+            lat.lateral_q(lp, vehicle.tire.sigma0_y / vehicle.tire.kappa_y),
+            np.array([(b.mass * lp.sigma_ax) ** 2, (b.mass * lp.sigma_ay) ** 2,
+                      lp.sigma_yaw**2, lp.sigma_split**2]), wm, wc, float(tau))
+        """The lateral-force UKF's parameters (:func:`~.lateral.lateral_kernel`)."""
         a = vehicle.stated_aerodynamics
         self._drag_coef = 0.5 * a.air_density * a.drag_area
         self.rolling_resistance = vehicle.stated_aerodynamics.rolling_resistance
@@ -521,9 +524,7 @@ class ForceEstimator:
         self._lon_inertia = lon.LongitudinalEstimator(self.vehicle, cfg.longitudinal, cfg.ukf,
                                                       cfg.pid, cfg.uio)
         self._att = np.zeros(nrm.N_ATTITUDE)
-        self._lat_x = np.zeros(lat.N_X)
-        self._lat_P = np.zeros((lat.N_X, lat.N_X))
-        self._lat_state = np.zeros(lat.N_STATE)
+        self.lateral_state = lat.new_lateral_state()
         self._ax_state = np.zeros(4)  # speed_derivative's state (logs without ax)
         self._hold_state = np.zeros(3)  # speed_hold's state (gnss_speed without wheel speeds)
         self._seen: dict[str, set[str]] = {}
@@ -636,10 +637,8 @@ class ForceEstimator:
         weights = lat.split_weights(fz, u.omega, u.torque, u.yaw_rate, b.wheel_radius, self._yw,
                                     lp.load_exponent, lp.slip_scale)
         speed = b.wheel_radius * np.median(u.omega, axis=1)
-        lat.lateral_kernel(u.t, fx, u.delta, weights, f_x, f_y, u.yaw_rate, drag, fz, speed,
-                           b.mass, b.yaw_inertia, self._xw, self._yw, self._q_lat, self._r_lat,
-                           self._w4, self._c4, self._tau4, self._lat_x, self._lat_P,
-                           self._lat_state, fy, sig_fy)
+        lat.lateral_kernel(self.lateral_params, self.lateral_state, u.t, fx, u.delta, weights,
+                           f_x, f_y, u.yaw_rate, drag, fz, speed, fy, sig_fy)
         if not u.omega_measured:  # per-corner F_x needs the wheels' own speeds
             fx = np.full_like(fx, np.nan)
             sig_fx = np.full_like(sig_fx, np.nan)

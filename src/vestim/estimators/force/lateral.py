@@ -60,7 +60,7 @@ nominal stiffness c₀ = σ0y/κy (``split_kinematic``, see the kernel).
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Any
+from typing import Any, NamedTuple
 
 import numpy as np
 from numba import njit
@@ -193,14 +193,42 @@ def _body_forces(x: np.ndarray, fx: np.ndarray, cd: np.ndarray, sd: np.ndarray, 
     return sx, sy, mz
 
 
+class LateralKernelParams(NamedTuple):
+    """:func:`lateral_kernel`'s parameters (SI): the car's mass (kg) and yaw inertia
+    (kg m²), the corner positions ``xw`` ahead of and ``yw`` left of the CG (4,) m, the noise
+    ``q`` (:func:`lateral_q`) and ``r_diag`` (4,), the sigma-point weights and scale."""
+
+    mass: float
+    iz: float
+    xw: np.ndarray
+    yw: np.ndarray
+    q: np.ndarray
+    r_diag: np.ndarray
+    wm: np.ndarray
+    wc: np.ndarray
+    tau: float
+
+
+class LateralState(NamedTuple):
+    """:func:`lateral_kernel`'s state: ``x`` (:data:`N_X`,), ``P`` (N_X, N_X), ``state``
+    (:data:`N_STATE`,) (see there); :func:`new_lateral_state` makes a fresh one."""
+
+    x: np.ndarray
+    P: np.ndarray
+    state: np.ndarray
+
+
+def new_lateral_state() -> LateralState:
+    """A fresh :class:`LateralState` (the next sample initialises the filter)."""
+    return LateralState(np.zeros(N_X), np.zeros((N_X, N_X)), np.zeros(N_STATE))
+
+
 @njit(**_JIT)
-def lateral_kernel(t: np.ndarray, fx: np.ndarray, delta: np.ndarray, weights: np.ndarray,
-                   f_x: np.ndarray, f_y: np.ndarray, yaw_rate: np.ndarray, drag: np.ndarray,
-                   fz: np.ndarray, speed: np.ndarray, mass: float, iz: float, xw: np.ndarray, yw: np.ndarray,
-                   q: np.ndarray, r_diag: np.ndarray, wm: np.ndarray, wc: np.ndarray, tau: float,
-                   x: np.ndarray, P: np.ndarray, state: np.ndarray,
+def lateral_kernel(p: LateralKernelParams, s: LateralState, t: np.ndarray, fx: np.ndarray,
+                   delta: np.ndarray, weights: np.ndarray, f_x: np.ndarray, f_y: np.ndarray,
+                   yaw_rate: np.ndarray, drag: np.ndarray, fz: np.ndarray, speed: np.ndarray,
                    fy_out: np.ndarray, sig_out: np.ndarray) -> None:
-    """Advance the lateral-force UKF over a chunk (in place on x (4,), P (4, 4), state).
+    """Advance the lateral-force UKF over a chunk (in place on ``s``: x (4,), P (4, 4), state).
 
     Inputs per sample: fx (n, 4) tire-frame longitudinal forces, delta (n, 4)
     road-wheel angles (rear 0), weights (n, 4) lateral-capacity weights of
@@ -212,6 +240,9 @@ def lateral_kernel(t: np.ndarray, fx: np.ndarray, delta: np.ndarray, weights: np
     on the force random walk, offset b̂ of f_y (m/s²), time since the start (s)].
     Outputs: fy_out (n, 4) tire-frame lateral force per corner, sig_out (n, 4) one-sigma.
     """
+    mass, iz, xw, yw, q, r_diag = p.mass, p.iz, p.xw, p.yw, p.q, p.r_diag
+    wm, wc, tau = p.wm, p.wc, p.tau
+    x, P, state = s.x, s.P, s.state
     n = t.shape[0]
     npts = 2 * N_X + 1
     pts = np.empty((npts, N_X))

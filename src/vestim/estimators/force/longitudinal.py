@@ -124,12 +124,9 @@ class UKFParams:
 
 
 @njit(**_JIT)
-def ukf_rw_kernel(t: np.ndarray, omega: np.ndarray, torque: np.ndarray, iw: float, radius: float,
-               r_omega: float, r_torque: float, q_force: float, q_force_high: float,
-               omega_dot_high: float, p0_force: float, wm: np.ndarray, wc: np.ndarray, tau: float,
-               x: np.ndarray, P: np.ndarray, hist_t: np.ndarray, hist_w: np.ndarray,
-               prev_torque: np.ndarray, fx: np.ndarray, sigma: np.ndarray,
-               high: np.ndarray) -> None:
+def ukf_rw_kernel(p: LongitudinalParams, s: LongitudinalState, t: np.ndarray, omega: np.ndarray,
+                  torque: np.ndarray, fx: np.ndarray, sigma: np.ndarray,
+                  high: np.ndarray) -> None:
     """Advance the four corner UKFs over a chunk of samples (in place on the state arrays).
 
     State arrays: x (4, 2) = [ω, F] per corner, P (4, 2, 2), hist_t (m,) and
@@ -143,6 +140,10 @@ def ukf_rw_kernel(t: np.ndarray, omega: np.ndarray, torque: np.ndarray, iw: floa
     eq. (11) reuses the propagated points, which leaves Q out of P_zz; redrawing
     is the standard, consistent form).
     """
+    iw, radius, r_omega, r_torque = p.iw, p.radius, p.r_omega, p.r_torque
+    q_force, q_force_high, omega_dot_high = p.q_force, p.q_force_high, p.omega_dot_high
+    p0_force, wm, wc, tau = p.p0_force, p.wm, p.wc, p.tau
+    x, P, hist_t, hist_w, prev_torque = s.x, s.P, s.hist_t, s.hist_w, s.prev_torque
     n = t.shape[0]
     m = hist_t.shape[0]
     pts = np.empty((5, 2))
@@ -702,10 +703,7 @@ def longitudinal_rows(p: LongitudinalParams, s: LongitudinalState, t: np.ndarray
         ukf_kernel(t, omega, torque, p.ukf, p.wm, p.wc, p.tau, s.x, s.P, s.hist_t, s.hist_w, fx,
                    sigma, np.empty(fx.shape, dtype=np.bool_))
     elif m == UKF_RW:
-        ukf_rw_kernel(t, omega, torque, p.iw, p.radius, p.r_omega, p.r_torque, p.q_force,
-                      p.q_force_high, p.omega_dot_high, p.p0_force, p.wm, p.wc, p.tau, s.x, s.P,
-                      s.hist_t, s.hist_w, s.prev_torque, fx, sigma,
-                      np.empty(fx.shape, dtype=np.bool_))
+        ukf_rw_kernel(p, s, t, omega, torque, fx, sigma, np.empty(fx.shape, dtype=np.bool_))
     elif m == PID:
         pid_kernel(t, omega, torque, p.iw, p.radius, p.eta1, p.eta2, p.eta3, s.state, s.prev, fx)
     elif m == UIO:
