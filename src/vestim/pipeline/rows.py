@@ -543,8 +543,8 @@ def _block(P: Params, S: State, x: np.ndarray, Y: np.ndarray, k0: int) -> None:
     _put(Y, col, j + 4, scale, k0)
     _put(Y, col, j + 5, latency, k0)
     _put4(Y, col, _R_CONF, conf, k0)
-    _post(P.post, S.post, x, t, ax, v, sig, c_y, bias[:, 3].copy(), fx, fy, fz, sig_fx, sig_fy,
-          sr, sa, vxt, vyt, delta, omega_v, Y, col, k0)
+    _post(P.post, S.post, x, t, ax, v, sig, c_y, bias[:, 3].copy(),
+          Corners(fx, fy, fz, sig_fx, sig_fy, sr, sa, vxt, vyt, delta, omega_v), Y, col, k0)
 
 
 @njit(**_JIT)
@@ -687,17 +687,36 @@ def _fused(P: Params, S: State, t: np.ndarray, omega: np.ndarray, torque: np.nda
     return v, sig, bias
 
 
+class Corners(NamedTuple):
+    """A block's per-corner quantities (m, 4) that the last stages read: forces (N) and their
+    σ, slip ratio and angle (rad), tire-frame velocities (m/s), road-wheel angles (rad),
+    wheel speeds (rad/s)."""
+
+    fx: np.ndarray
+    fy: np.ndarray
+    fz: np.ndarray
+    sig_fx: np.ndarray
+    sig_fy: np.ndarray
+    sr: np.ndarray
+    sa: np.ndarray
+    vxt: np.ndarray
+    vyt: np.ndarray
+    delta: np.ndarray
+    omega: np.ndarray
+
+
 @njit(**_JIT)
 def _post(p: PostParams, st: PostState, x: np.ndarray, t: np.ndarray, ax: np.ndarray,
-          v: np.ndarray,
-          sig: np.ndarray, c_y: np.ndarray, vy_unverified: np.ndarray, fx: np.ndarray,
-          fy: np.ndarray, fz: np.ndarray, sig_fx: np.ndarray, sig_fy: np.ndarray,
-          sr: np.ndarray, sa: np.ndarray, vxt: np.ndarray, vyt: np.ndarray, delta: np.ndarray,
-          omega: np.ndarray, Y: np.ndarray, col: np.ndarray, k0: int) -> None:
+          v: np.ndarray, sig: np.ndarray, c_y: np.ndarray, vy_unverified: np.ndarray,
+          corners: Corners, Y: np.ndarray, col: np.ndarray, k0: int) -> None:
     """Friction, validity and uncertainty of a block (their per-sample steps) and its health
     flags, into Y (quantities from :data:`_R_MU` on). ``v``, ``sig`` (m, 2) the filter's
     velocity and σ, m/s; ``vy_unverified`` the time since the reference filter last accepted
-    a v_y pseudo-measurement, s; per-corner arrays (m, 4)."""
+    a v_y pseudo-measurement, s."""
+    fx, fy, fz, sig_fx, sig_fy = (corners.fx, corners.fy, corners.fz, corners.sig_fx,
+                                  corners.sig_fy)
+    sr, sa, vxt, vyt = corners.sr, corners.sa, corners.vxt, corners.vyt
+    delta, omega = corners.delta, corners.omega
     m = t.shape[0]
     if np.isnan(st.t_start[0]):
         st.t_start[0] = t[0]
