@@ -170,6 +170,8 @@ class Pipeline:
         # point for their types: made on first use, dropped when a stage's state is replaced
         self._rows: tuple[rows_kernel.Params, rows_kernel.State] | None = None
         self._rows_fn: Callable[..., None] | None = None
+        self._stepper: rows_kernel.Stepper | None = None  # the trees, held by compiled code
+        self._step_fn: Callable[..., None] | None = None  # step_rows' entry point
         self._rows_names: tuple[str, ...] = ()  # the output order the trees write
         self._x1 = np.empty((1, rows_kernel.N_X))  # step()'s input row and output column
         self._y1 = np.empty((rows_kernel.N_ROW, 1))
@@ -224,6 +226,7 @@ class Pipeline:
         self._t_gnss = np.array([np.nan])
         self._fused_is_reference = True
         self._rows = None
+        self._stepper = None
         self._layout = None
 
     def unverified_warning(self) -> dict[str, str | float | None] | None:
@@ -546,10 +549,12 @@ class Pipeline:
         if self._rows is None or sensors != self._rows[0].sensors:
             self._rows = rows_kernel.build(self, names, sensors)
             self._rows_names = names
+            self._stepper = None
         elif names is not self._rows_names:
             P, S = self._rows
             self._rows = (P._replace(col=rows_kernel.columns(names)), S)
             self._rows_names = names
+            self._stepper = None
 
     def _call_rows(self, X: np.ndarray, Y: np.ndarray, start: int, stop: int) -> None:
         """:func:`~vestim.pipeline.rows.pipeline_rows` on the trees, through the entry point
@@ -559,11 +564,15 @@ class Pipeline:
         if self._rows_fn is None:
             self._rows_fn = _compiled(rows_kernel.pipeline_rows, P, S, X, Y, start, stop)
         self._rows_fn(P, S, X, Y, start, stop)
+        self._mirror(S, X, stop - start)
+
+    def _mirror(self, S: rows_kernel.State, X: np.ndarray, m: int) -> None:
+        """The Python-side state that mirrors the compiled one after ``m`` rows of ``X``."""
         prev = S.velocity.prev
         self._prev = prev[:2]  # a view (reset() replaces it)
         self._fused_is_reference = bool(prev[2])
         if self.corner is not None and self.config.velocity == "fused":
-            self.corner._t_last = float(X[stop - start - 1, rows_kernel.X_T])
+            self.corner._t_last = float(X[m - 1, rows_kernel.X_T])
 
     def _step_layout(self, sample: Mapping[str, float]) -> _Layout:
         """What a sample with these channels holds (checked once per set of channels).
@@ -636,7 +645,16 @@ class Pipeline:
             _ONES[:3] if self._chunk_imu is None else self._imu_buf[3][0])
         columns = layout.columns
         self._trees(columns, sensors)
-        self._call_rows(self._x1, self._y1, 0, 1)
+        assert self._rows is not None
+        if self._stepper is None:
+            self._stepper = rows_kernel.Stepper(*self._rows)
+            if self._step_fn is None:  # the entry point for these types, typed once
+                self._step_fn = _compiled(rows_kernel.step_rows, self._stepper, self._x1,
+                                          self._y1)
+        step_fn = self._step_fn
+        assert step_fn is not None
+        step_fn(self._stepper, self._x1, self._y1)
+        self._mirror(self._rows[1], self._x1, 1)
         return dict(zip(columns, self._y1[:len(columns), 0].tolist(), strict=True))
 
 

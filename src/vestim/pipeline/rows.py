@@ -28,6 +28,8 @@ from typing import TYPE_CHECKING, Any, NamedTuple
 
 import numpy as np
 from numba import njit
+from numba.core import types
+from numba.experimental import structref
 
 from vestim.estimators import registry
 from vestim.estimators.force.estimator import (
@@ -769,6 +771,31 @@ def _corner_trees(pipe: Pipeline) -> tuple[CornerParams, CornerState]:
 def covers(pipe: Pipeline) -> bool:
     """Whether :func:`pipeline_rows` composes ``pipe``'s configuration: every registered one."""
     return pipe is not None
+
+
+@structref.register
+class _StepperType(types.StructRef):
+    def preprocess_fields(self, fields: Any) -> Any:
+        return tuple((name, types.unliteral(typ)) for name, typ in fields)
+
+
+class Stepper(structref.StructRefProxy):
+    """The two trees held by compiled code (``Stepper(P, S)``): a call of :func:`step_rows`
+    unboxes one pointer instead of the ≈ 150 arrays of the trees (≈ 20 µs a call). It
+    shares the trees' arrays."""
+
+    P: Params  # the fields, for the type checker (define_proxy makes the properties)
+    S: State
+
+
+structref.define_proxy(Stepper, _StepperType, ["P", "S"])
+
+
+@njit(**_JIT)
+def step_rows(h: Stepper, X: np.ndarray, Y: np.ndarray) -> None:
+    """:func:`pipeline_rows` over the rows of ``X`` (into Y's columns 0 …) with the trees of
+    ``h``: what :meth:`Pipeline.step` calls for its one row."""
+    pipeline_rows(h.P, h.S, X, Y, 0, X.shape[0])
 
 
 def columns(names: tuple[str, ...]) -> np.ndarray:
