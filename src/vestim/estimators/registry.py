@@ -55,6 +55,9 @@ class Method:
             None.
         code: its integer code, the order of registration within the stage: what the
             compiled pipeline (:mod:`vestim.pipeline.rows`) dispatches on.
+        outputs: the optional output families it writes (``"sigma_fx"``: a σ of F_x;
+            ``"sigma_v"``: a filter σ of the velocity; ``"bias_ax"``: an accelerometer bias;
+            ``"confidence"``: per-corner confidences), which set the estimate's columns.
     """
 
     stage: str
@@ -66,6 +69,7 @@ class Method:
     default: bool = False
     corner: str | None = None
     code: int = 0
+    outputs: tuple[str, ...] = ()
 
 
 _REGISTRY: dict[str, dict[str, Method]] = {stage: {} for stage in STAGES}
@@ -73,7 +77,8 @@ _REGISTRY: dict[str, dict[str, Method]] = {stage: {} for stage in STAGES}
 
 def register(stage: str, name: str, summary: str, *, cite: str = "",
              tables: tuple[str, ...] = (), needs_wheel_speeds: bool = True,
-             default: bool = False, corner: str | None = None) -> Callable[[T], T]:
+             default: bool = False, corner: str | None = None,
+             outputs: tuple[str, ...] = ()) -> Callable[[T], T]:
     """Register method ``name`` of ``stage`` (see :class:`Method`); returns a decorator that
     leaves the decorated estimator unchanged.
 
@@ -90,7 +95,7 @@ def register(stage: str, name: str, summary: str, *, cite: str = "",
         raise ValueError(f"{stage} has two default methods ({name!r} and "
                          f"{next(m.name for m in entries.values() if m.default)!r})")
     entries[name] = Method(stage, name, summary, cite, tuple(tables), needs_wheel_speeds,
-                           default, corner, len(entries))
+                           default, corner, len(entries), tuple(outputs))
 
     def decorate(obj: T) -> T:
         return obj

@@ -271,10 +271,11 @@ class Pipeline:
                 f"velocity method {cfg.velocity!r} needs the wheel speeds omega_fl … omega_rr, "
                 "which the log does not have: use velocity 'reference' or 'fused' (the default)")
         corners = velocity.corner is not None and wheels
-        filtered = cfg.velocity in ("fused", "reference")
+        force = registry.lookup("force", cfg.force)
+        fusion = registry.lookup("fusion", cfg.fusion)
         return rows_kernel.output_columns(
-            wheels, cfg.force in ("ukf", "ukf_rw"), filtered, cfg.velocity != "kinematic",
-            corners and cfg.fusion == "opinion")
+            wheels, "sigma_fx" in force.outputs, "sigma_v" in velocity.outputs,
+            "bias_ax" in velocity.outputs, corners and "confidence" in fusion.outputs)
 
     def _run_rows(self, u: Inputs, faulty: np.ndarray, health: np.ndarray,
                   imu_health: np.ndarray, spans: list[tuple[int, int]], restarts: list[int],
@@ -571,7 +572,7 @@ class Pipeline:
         prev = S.velocity.prev
         self._prev = prev[:2]  # a view (reset() replaces it)
         self._fused_is_reference = bool(prev[2])
-        if self.corner is not None and self.config.velocity == "fused":
+        if self.corner is not None:
             self.corner._t_last = float(X[m - 1, rows_kernel.X_T])
 
     def _step_layout(self, sample: Mapping[str, float]) -> _Layout:

@@ -5,9 +5,11 @@ from vestim.estimators.registry import register
 
 register("force", "ukf", "UKF on the wheel dynamics with the torque filtered as a state and "
          "covariance switching on high wheel acceleration", default=True,
-         cite="000 eq. (10)–(12), 004 eq. (1)–(5), Sec. II-A", tables=("force_params",))
+         cite="000 eq. (10)–(12), 004 eq. (1)–(5), Sec. II-A", tables=("force_params",),
+         outputs=("sigma_fx",))
 register("force", "ukf_rw", "the papers' UKF exactly: x = [ω, F_x], F_x a random walk",
-         cite="000 eq. (10)–(12), 004 eq. (1)–(5)", tables=("force_params",))
+         cite="000 eq. (10)–(12), 004 eq. (1)–(5)", tables=("force_params",),
+         outputs=("sigma_fx",))
 register("force", "pid", "PID observer of the wheel dynamics", cite="001 eq. (2)–(5)",
          tables=("force_params",))
 register("force", "uio", "unknown-input observer of the wheel dynamics", cite="000 eq. (2)–(3)",

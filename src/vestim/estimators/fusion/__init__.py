@@ -49,7 +49,7 @@ register("fusion", "adaptive", "slip-adaptive axle weights", cite="001 eq. (34)â
          tables=("fusion_params",), needs_wheel_speeds=False)
 register("fusion", "opinion", "opinion-dynamics consensus with per-sample confidence "
          "optimisation (writes confidence_*)", cite="003 eq. (5)â€“(13), Alg. 2",
-         tables=("fusion_params",), needs_wheel_speeds=False)
+         tables=("fusion_params",), needs_wheel_speeds=False, outputs=("confidence",))
 
 
 @dataclass(frozen=True)
