@@ -65,7 +65,7 @@ from typing import Any, NamedTuple
 import numpy as np
 from numba import njit
 
-from vestim.filters.linalg import cholesky
+from vestim.filters.kalman import ukf_update
 from vestim.filters.ukf import sigma_points, weighted_cross, weighted_mean
 from vestim.params import check_ranges
 
@@ -254,7 +254,6 @@ def lateral_kernel(p: LateralKernelParams, s: LateralState, t: np.ndarray, fx: n
     L = np.empty((N_X, N_X))
     Ly = np.empty((N_Y, N_Y))
     K = np.empty((N_X, N_Y))
-    zrow = np.empty(N_Y)
     H = np.empty((N_Y, N_X))
     cd_now = np.empty(4)
     sd_now = np.empty(4)
@@ -356,7 +355,6 @@ def lateral_kernel(p: LateralKernelParams, s: LateralState, t: np.ndarray, fx: n
                 d_kin /= 1.0 + (mu_f / 0.2) ** 2
                 lim = abs(xm[FYF])
                 y[3] += min(max(d_kin, -lim), lim)
-            # K = Pxy Pyy⁻¹ by Cholesky of Pyy (SPD): solve Pyy Kᵀ = Pxyᵀ.
             # Innovation-matched force random walk: the running means of the
             # normalised lateral-balance and yaw-rate innovations are ~0 while the
             # random walk keeps up; a force change the walk lags behind makes them
@@ -367,35 +365,9 @@ def lateral_kernel(p: LateralKernelParams, s: LateralState, t: np.ndarray, fx: n
                 state[11] += a_nu * (y[2] / np.sqrt(Pyy[2, 2]) - state[11])
                 nu2 = max(state[10] * state[10], state[11] * state[11])
                 state[12] = min(1.0 + nu2 / (q[5] * q[5]), q[6])
-            cholesky(Pyy, Ly)
-            for r in range(N_X):
-                for j in range(N_Y):  # forward substitution Ly z = Pxy[r]
-                    v = Pxy[r, j]
-                    for m in range(j):
-                        v -= Ly[j, m] * zrow[m]
-                    zrow[j] = v / Ly[j, j]
-                for j in range(N_Y - 1, -1, -1):  # back substitution Lyᵀ k = z
-                    v = zrow[j]
-                    for m in range(j + 1, N_Y):
-                        v -= Ly[m, j] * K[r, m]
-                    K[r, j] = v / Ly[j, j]
-            for r in range(N_X):
-                acc = xm[r]
-                for j in range(N_Y):
-                    acc += K[r, j] * y[j]
-                x[r] = acc
-            # P = P̄ − K Pyy Kᵀ = P̄ − K Pxyᵀ
-            for r in range(N_X):
-                for c2 in range(N_X):
-                    acc = Pm[r, c2]
-                    for j in range(N_Y):
-                        acc -= K[r, j] * Pxy[c2, j]
-                    P[r, c2] = acc
-            for r in range(N_X):
-                for c2 in range(r + 1, N_X):
-                    v = 0.5 * (P[r, c2] + P[c2, r])
-                    P[r, c2] = v
-                    P[c2, r] = v
+            x[:] = xm
+            P[:, :] = Pm
+            ukf_update(x, P, Pxy, Pyy, y, Ly, K)  # K = Pxy Pyy⁻¹, x̂ += K ν, P −= K Pxyᵀ
         if q[7] > 0.0:
             # Offset of the lateral balance: f_y − r v_x is the sideslip acceleration v̇_y,
             # zero on average, plus what the attitude filter leaks into f_y at low
