@@ -65,17 +65,44 @@ def test_missing_extra_names_the_extra():
 
 
 def test_numba_cache_goes_to_the_user_cache_or_numba_cache_dir(tmp_path: Path):
-    """A read-only install must not recompile in every process: the cache is not the package."""
+    """A read-only install must not recompile in every process: the cache is not the package.
+    And each version of the code has its own directory: Numba checks only a cached kernel's
+    own file, so a changed callee would otherwise run stale (test below)."""
     code = "import vestim, numba; print(numba.config.CACHE_DIR)"
     env = {k: v for k, v in os.environ.items() if k not in ("NUMBA_CACHE_DIR",)}
     env["XDG_CACHE_HOME"] = str(tmp_path / "xdg")
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
                          check=True, env=env)
-    assert out.stdout.strip() == str(tmp_path / "xdg" / "vestim" / "numba")
+    from vestim._cache import code_fingerprint
+
+    assert out.stdout.strip() == str(tmp_path / "xdg" / "vestim" / "numba" / code_fingerprint())
     env["NUMBA_CACHE_DIR"] = str(tmp_path / "mine")
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
                          check=True, env=env)
     assert out.stdout.strip() == str(tmp_path / "mine")
+
+
+def test_the_cache_directory_changes_with_any_source_file(tmp_path: Path):
+    """A copy of the package with one callee's file changed (pipeline/rows.py untouched) gets
+    another cache directory, so its compiled composition cannot be the stale one."""
+    import shutil
+
+    import vestim
+    from vestim import _cache
+
+    pkg = Path(vestim.__file__).resolve().parent
+    copy = tmp_path / "vestim"
+    shutil.copytree(pkg, copy, ignore=shutil.ignore_patterns("__pycache__", "*.nb*"))
+    code = ("import importlib.util, sys; spec = importlib.util.spec_from_file_location("
+            f"'_c', {str(copy / '_cache.py')!r}); m = importlib.util.module_from_spec(spec); "
+            "spec.loader.exec_module(m); print(m.code_fingerprint())")
+    run = [sys.executable, "-c", code]
+    same = subprocess.run(run, capture_output=True, text=True, check=True).stdout.strip()
+    assert same == _cache.code_fingerprint()
+    lon = copy / "estimators" / "force" / "longitudinal.py"
+    lon.write_text(lon.read_text(encoding="utf-8") + "\n# changed\n", encoding="utf-8")
+    changed = subprocess.run(run, capture_output=True, text=True, check=True).stdout.strip()
+    assert changed != same
 
 
 def test_license_file_is_shipped():

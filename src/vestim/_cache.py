@@ -3,12 +3,20 @@
 Numba writes its on-disk cache next to each source file by default, so a read-only
 install (a system site-packages, a container layer) recompiles every kernel in every
 process. vestim points Numba at ``$NUMBA_CACHE_DIR`` when the user set it, else at
-``$XDG_CACHE_HOME/vestim/numba`` (``~/.cache/vestim/numba``). Numba keys each entry by the
-source file's path and modification time, so several installs can share the directory.
+``$XDG_CACHE_HOME/vestim/numba/<code>`` (``~/.cache/vestim/numba/<code>``).
+
+``<code>`` is a fingerprint of vestim's source files (:func:`code_fingerprint`). Numba keys
+each cached kernel by its own source file's path and modification time only, not by the
+files of the functions it calls: once ``pipeline/rows.py`` is cached, a change in
+``estimators/force/longitudinal.py`` alone (an upgrade, an edit) would still run the old,
+inlined longitudinal filter. Every version of the code gets its own directory instead (a
+user-set ``$NUMBA_CACHE_DIR`` has that hazard; clear it after changing the code).
 """
 
 from __future__ import annotations
 
+import functools
+import hashlib
 import os
 import sys
 import threading
@@ -22,12 +30,24 @@ NOTICE_AFTER_S = 1.0
 """A compilation still running after this many seconds is announced (:func:`compile_notice`)."""
 
 
+@functools.cache
+def code_fingerprint() -> str:
+    """SHA-256 (16 hex digits) of the path and bytes of every ``.py`` file of the installed
+    vestim package: the same for the same code, different after any change."""
+    root = Path(__file__).resolve().parent
+    digest = hashlib.sha256()
+    for path in sorted(root.rglob("*.py")):
+        digest.update(path.relative_to(root).as_posix().encode())
+        digest.update(path.read_bytes())
+    return digest.hexdigest()[:16]
+
+
 def cache_dir() -> Path:
     """The directory Numba caches vestim's kernels in (it may not exist yet)."""
     if os.environ.get(ENV):
         return Path(os.environ[ENV])
     base = os.environ.get("XDG_CACHE_HOME") or str(Path.home() / ".cache")
-    return Path(base) / "vestim" / "numba"
+    return Path(base) / "vestim" / "numba" / code_fingerprint()
 
 
 def configure() -> Path:
