@@ -36,7 +36,6 @@ __all__ = [
     "ErrorStats",
     "channel_family",
     "coverage",
-    "with_coverage",
     "error_stats",
     "floor_for",
     "max_abs_error",
@@ -46,6 +45,7 @@ __all__ = [
     "significant",
     "to_json",
     "to_markdown",
+    "with_coverage",
 ]
 
 FLOORS: dict[str, float] = {
