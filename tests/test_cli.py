@@ -241,7 +241,11 @@ def test_score_coverage_table(tmp_path):
                                str(sim), "--out", str(est)]).exit_code == 0
     result = runner.invoke(app, ["score", str(est), str(sim), "--coverage"])
     assert result.exit_code == 0, result.output
-    assert "| vx | m/s |" in result.output and "within 1σ %" in result.output
+    # the scores and, beside them, the σ coverage (issue 30): NRMS … samples, 1σ %, 2σ %
+    assert "| NRMS [%] |" in result.output and "| within 1σ % | within 2σ % |" in result.output
+    vx = next(line for line in result.output.splitlines() if line.startswith("| vx | m/s |"))
+    cells = [c.strip() for c in vx.strip("|").split("|")]
+    assert len(cells) == 10 and 0.0 <= float(cells[8]) <= float(cells[9]) <= 100.0
 
 
 def test_non_finite_or_mistyped_options_are_clear_errors(tmp_path):

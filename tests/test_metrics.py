@@ -383,3 +383,27 @@ def test_coverage_of_named_channels():
     assert list(table["within_1sigma"]) == [0.0, 1.0] and list(table["within_2sigma"]) == [1.0, 1.0]
     with pytest.raises(LogFormatError, match="'fx_fl' needs a sigma_fx_fl column"):
         coverage(est, ref, channels=["fx_fl"])
+
+
+def test_scores_with_coverage_beside_them():
+    """``vestim score --coverage``'s table: each channel's scores with its σ coverage beside
+    them, "–" where the channel has no σ. vx is off by 0.5 against σ 1 (all within 1σ), vy
+    by 1.5 (outside 1σ, inside 2σ), fx_fl has no σ."""
+    from vestim.metrics import coverage, score, to_json, to_markdown, with_coverage
+
+    t = np.arange(5) * 0.1
+    est = pd.DataFrame({"t": t, "vx": t, "sigma_vx": 1.0, "vy": t, "sigma_vy": 1.0,
+                        "fx_fl": t + 100.0})
+    ref = pd.DataFrame({"t": t, "ref_vx": t + 0.5, "ref_vy": t + 1.5, "ref_fx_fl": t})
+    table = with_coverage(score(est, ref), coverage(est, ref)).set_index("channel")
+    assert table.loc["vx", "rmse"] == pytest.approx(0.5)
+    assert (table.loc["vx", "within_1sigma"], table.loc["vy", "within_1sigma"],
+            table.loc["vy", "within_2sigma"]) == (1.0, 0.0, 1.0)
+    assert math.isnan(table.loc["fx_fl", "within_1sigma"])
+    text = to_markdown(table.reset_index())
+    assert "| within 1σ % | within 2σ % |" in text
+    vy_row = next(line for line in text.splitlines() if line.startswith("| vy |"))
+    assert vy_row.endswith("| 0.0 | 100.0 |")
+    fx_row = next(line for line in text.splitlines() if line.startswith("| fx_fl |"))
+    assert fx_row.endswith("| – | – |")
+    assert '"within_2sigma": 1.0' in to_json(table.reset_index())

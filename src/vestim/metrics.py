@@ -36,7 +36,6 @@ __all__ = [
     "ErrorStats",
     "channel_family",
     "coverage",
-    "coverage_markdown",
     "error_stats",
     "floor_for",
     "max_abs_error",
@@ -46,6 +45,7 @@ __all__ = [
     "significant",
     "to_json",
     "to_markdown",
+    "with_coverage",
 ]
 
 FLOORS: dict[str, float] = {
@@ -414,6 +414,14 @@ def coverage(estimate: pd.DataFrame, reference: pd.DataFrame, *,
     return pd.DataFrame(rows, columns=list(COVERAGE_COLUMNS))
 
 
+def with_coverage(scores: pd.DataFrame, cover: pd.DataFrame) -> pd.DataFrame:
+    """:func:`score`'s table with :func:`coverage`'s ``within_1sigma`` and ``within_2sigma``
+    beside each channel's scores (NaN for a channel without a σ); what ``vestim score
+    --coverage`` prints."""
+    shares = cover.set_index("channel")[["within_1sigma", "within_2sigma"]]
+    return scores.join(shares, on="channel")
+
+
 # ------------------------------------------------------------------------------ output
 
 def significant(value: Any, digits: int = 3) -> str:
@@ -442,14 +450,17 @@ def to_markdown(table: pd.DataFrame) -> str:
 
     NRMS is shown in % to 3 significant figures (:func:`significant`: a 0.004 % error reads
     0.00400, not 0.00); an NRMS normalised by the floor is marked ``*``.
-    RMSE, max error and max |ref| are given to 4 significant figures in the channel's unit.
+    RMSE, max error and max |ref| are given to 4 significant figures in the channel's unit;
+    a table from :func:`with_coverage` adds the σ coverage in % ("–": no σ).
     """
     missing = [c for c in SCORE_COLUMNS if c not in table.columns]
     if missing:
         raise ValueError(f"not a score table: missing column(s) {', '.join(missing)}")
+    cover = "within_1sigma" in table.columns
     lines = [
-        "| channel | unit | NRMS [%] | RMSE | max error | max abs ref | floor | samples |",
-        "|---|---|---:|---:|---:|---:|---:|---:|",
+        "| channel | unit | NRMS [%] | RMSE | max error | max abs ref | floor | samples |"
+        + (" within 1σ % | within 2σ % |" if cover else ""),
+        "|---|---|---:|---:|---:|---:|---:|---:|" + ("---:|---:|" if cover else ""),
     ]
     for row in table.to_dict(orient="records"):
         pct = significant(row["nrms_pct"])
@@ -460,24 +471,14 @@ def to_markdown(table: pd.DataFrame) -> str:
         lines.append(
             f"| {row['channel']} | {row['unit']} | {pct} | {_sig(row['rmse'])} | "
             f"{_sig(row['max_error'])} | {_sig(row['ref_max'])} | {_sig(row['floor'])} | {samples} |"
+            + (f" {_sig(100 * float(row['within_1sigma']), fixed=1)} | "
+               f"{_sig(100 * float(row['within_2sigma']), fixed=1)} |" if cover else "")
         )
     note = "NRMS = RMS error / max(max|ref|, floor) (000 Sec. IV)."
     if table["floored"].astype(bool).any():
         note += " * The truth stayed below the floor, so the floor was the denominator."
     lines += ["", note]
     return "\n".join(lines) + "\n"
-
-
-def coverage_markdown(table: pd.DataFrame) -> str:
-    """:func:`coverage`'s table as Markdown (shares in percent)."""
-    lines = ["| channel | unit | within 1σ % | within 2σ % | median σ | RMSE | samples |",
-             "|---|---|---:|---:|---:|---:|---:|"]
-    for r in table.to_dict("records"):
-        lines.append(f"| {r['channel']} | {r['unit']} | "
-                     f"{_sig(100 * float(r['within_1sigma']), fixed=1)} | "
-                     f"{_sig(100 * float(r['within_2sigma']), fixed=1)} | "
-                     f"{_sig(r['median_sigma'])} | {_sig(r['rmse'])} | {r['samples']} |")
-    return "\n".join(lines)
 
 
 def _json_value(value: Any) -> Any:

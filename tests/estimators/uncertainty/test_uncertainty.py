@@ -4,10 +4,11 @@ Physics: the first-order propagation against a Monte-Carlo of the same model (ki
 :mod:`vestim.models.kinematics`, load transfer of :mod:`vestim.estimators.force.normal`) at
 small input errors, where the first order is exact to well under 5 %; σ finite and ≥ 0
 everywhere (hypothesis), at standstill and reversing; σ of the slip angle growing as the
-speed falls. Coverage: the share of samples within 1σ / 2σ on our simulator (seed 1; the
-fitted coefficients come from seed 0), on simulator plants whose load-transfer parameters
-are drawn from the stated priors (the F_z σ's claim), and on the crossplant logs (hold-out):
-issue 15's band is 60–80 % / 90–98 %.
+speed falls. Coverage: the share of samples within 1σ / 2σ of v_x and v_y on a few
+independent logs one by one, as ``vestim estimate`` writes σ (real, crossplant, campaign),
+pooled on the crossplant logs and on our simulator (regression), and on simulator plants
+whose load-transfer parameters are drawn from the stated priors (the F_z σ's claim): the
+band is 60–80 % / 90–98 % (issues 15, 30).
 """
 
 from __future__ import annotations
@@ -39,6 +40,7 @@ from vestim.estimators.uncertainty import (
 )
 from vestim.io import load_vehicle, read_log
 from vestim.io.vehicle import Vehicle
+from vestim.metrics import coverage
 from vestim.models import kinematics as kin
 from vestim.pipeline import Pipeline, PipelineConfig
 from vestim.sim import get_maneuver, simulate
@@ -372,39 +374,40 @@ def _case(family: str, measured: str | None) -> object:
         strict=True, reason=f"measured {measured}; target 60–80 / 90–98 %"))
 
 
-# Measured pooled coverage, 1σ / 2σ %, where outside the band (see docs/results.md).
-# σ_vx keeps the filter's √P (k_filter_vx = 1: the simulator fit 0.2 loses on the real RAV4
-# log, 29 / 52 % against 66 / 92 %), which is 3–10× the actual v_x error on the crossplant
-# and the simulator alike (and so the crossplant slip ratio's, whose σ is mostly σ_vx/v);
-# the simulator's slip ratios fall within the band. The simulator's σ_vy
-# is too large while it corners gently (the drift term serves the compact car's sliding runs);
-# its F_z truth is the file's own parameters (the priors' claim is tested on drawn plants
+# Measured pooled coverage, 1σ / 2σ %, where outside the band (see docs/results.md). The
+# coefficients are calibrated on the independent logs (crossplant, campaign, real), one set
+# for all (issue 30): σ_vx carries the effective radius's error k_speed |v_x| (0.4 %) that a
+# real car has (RAV4: 0.84 % of its speed) and a simulated plant, whose radius is the
+# vehicle file's, has not: here σ_vx (and the corner velocities' and the slip ratio's, whose
+# σ is mostly σ_vx/v) over-covers. σ_vy keeps a floor of 0.02 m/s (the RAV4's straight-line
+# v_y error is 0.029 m/s RMS) that is 5–10× the simulated plants' straight-line error;
+# F_z's truth is the file's own parameters (the priors' claim is tested on drawn plants
 # below); pitch's floor (accelerometer bias / g) is 5× its error.
-SIM_MISSED: dict[str, str] = {"vx": "97.0 / 97.9", "vx_*": "96.9 / 97.9",
-                              "vy": "97.1 / 99.8", "vy_*": "93.4 / 99.7",
-                              "slip_angle_*": "94.9 / 99.8", "fz_*": "99.7 / 100.0",
+SIM_MISSED: dict[str, str] = {"vx": "92.4 / 96.9", "vx_*": "92.4 / 96.9",
+                              "vy": "95.5 / 99.5", "vy_*": "95.3 / 99.5",
+                              "slip_angle_*": "95.3 / 99.5", "fz_*": "99.7 / 100.0",
                               "pitch": "99.8 / 100.0"}
-# The crossplant files are the plants' own parameters (F_z), and the v_y of x02/x06 drifts
-# beyond the model.
 CROSSPLANT_MISSED: dict[str, str] = {
-    "vx": "100.0 / 100.0", "vy": "87.7 / 97.1", "vx_*": "100.0 / 100.0", "vy_*": "83.5 / 96.0",
-    "vxt_*": "100.0 / 100.0", "vyt_*": "86.0 / 96.7", "slip_ratio_*": "99.2 / 100.0",
-    "slip_angle_*": "85.9 / 96.7", "fz_*": "98.4 / 99.9", "pitch": "100.0 / 100.0"}
+    "vx": "98.7 / 99.7", "vy": "95.3 / 99.1", "vx_*": "98.7 / 99.7", "vy_*": "95.3 / 99.1",
+    "vxt_*": "98.7 / 99.5", "vyt_*": "95.4 / 99.1", "slip_ratio_*": "97.7 / 99.7",
+    "slip_angle_*": "95.4 / 99.1", "fz_*": "98.4 / 99.9", "pitch": "100.0 / 100.0"}
 SIM_FAMILIES = tuple(f for f in FAMILIES if f not in ("vxt_*", "vyt_*"))  # no ref_vxt there
 
 
 @pytest.mark.parametrize("family", [_case(f, SIM_MISSED.get(f)) for f in SIM_FAMILIES])
 def test_coverage_on_simulator(family: str) -> None:
     """Pooled over the 20 simulator runs of CALIBRATION_RUNS on seed 1 (the coefficients were
-    fitted on seed 0): 1σ within 60–80 %, 2σ within 90–98 %."""
+    calibrated on the independent logs; regression only): 1σ within 60–80 %, 2σ within
+    90–98 %."""
     c = _sim_coverage()[family]
     assert _in_band(c), f"{family}: {100 * c[0]:.1f} / {100 * c[1]:.1f} %"
 
 
 @pytest.mark.parametrize("family", [_case(f, CROSSPLANT_MISSED.get(f)) for f in FAMILIES])
 def test_coverage_on_crossplant(family: str) -> None:
-    """Pooled over the 12 crossplant logs (a different plant and tire; never fitted on):
-    1σ within 60–80 %, 2σ within 90–98 %."""
+    """Pooled over the 12 crossplant logs' samples (a different plant and tire; one of the
+    three data sets the coefficients are calibrated on): 1σ within 60–80 %, 2σ within
+    90–98 %."""
     if not CROSSPLANT.is_dir():
         pytest.skip("../shared/crossplant/data not present")
     c = _crossplant_coverage()[family]
@@ -461,3 +464,73 @@ def test_params_are_packed_from_the_config_and_the_vehicle() -> None:
     assert PURE.sigma_az == 0.05
     assert more**2 - base**2 == pytest.approx((VEH.body.mass / 4) ** 2 * (0.2**2 - 0.05**2),
                                               rel=1e-9)
+
+
+# ------------------------------------------------------------ independent logs, one by one
+
+SHARED = Path(__file__).resolve().parents[3] / ".." / "shared"
+INDEPENDENT: dict[str, tuple[str, str, tuple[str, ...]]] = {
+    "rav4": ("real/comma2k19_rav4/seg40.parquet", "real/comma2k19_rav4/vehicle.toml",
+             ("gnss_speed",)),
+    "rav4_gnss": ("real/comma2k19_rav4/seg40.parquet", "real/comma2k19_rav4/vehicle.toml", ()),
+    "revs": ("real/revs_250lm/20140222_01_01_03.parquet", "real/revs_250lm/vehicle.toml", ()),
+    "x06": ("crossplant/data/x06_ramp_steer_wet_fwd.parquet",
+            "crossplant/data/vehicle1.toml", ()),
+    "x10": ("crossplant/data/x10_mixed_drive_fwd.parquet",
+            "crossplant/data/vehicle1.toml", ()),
+    "s1_004": ("crossplant/data_campaign/s1_004_step_steer.parquet",
+               "crossplant/data_campaign/s1_004_step_steer.toml", ()),
+    "s1_017": ("crossplant/data_campaign/s1_017_step_steer.parquet",
+               "crossplant/data_campaign/s1_017_step_steer.toml", ()),
+}
+"""A few independent logs (the real ones as ``../shared/real/targets.py`` runs them): log,
+vehicle file (under ../shared) and the columns dropped."""
+
+_RADIUS = ("the effective radius's error is a scale error of the whole speed that nothing "
+           "measures; σ_vx carries 0.4 % of the speed for it")
+# Measured 1σ / 2σ %, where outside the band, and why (one set of coefficients for every log).
+INDEPENDENT_MISSED: dict[tuple[str, str], str] = {
+    ("rav4", "vx"): f"measured 16.3 / 82.9 %: the RAV4's radius is 0.84 % off; {_RADIUS}",
+    ("rav4_gnss", "vx"): "measured 80.5 / 96.9 %: 0.5 point above the 1σ band (the GNSS "
+                         "speed halves the radius error to 0.43 %)",
+    ("revs", "vx"): "measured 98.5 / 100.0 %: no wheel speeds, v_x is the GNSS speed's, "
+                    "0.16 % off, against the 0.4 % radius term",
+    ("x06", "vy"): "measured 25.9 / 100.0 %: a v_y error that persists through the wet ramp "
+                   "steer (0.29 m/s RMS) against σ_vy's cornering term; 2σ holds",
+    ("x10", "vx"): f"measured 100.0 / 100.0 %: a simulated plant's radius is the file's; {_RADIUS}",
+    ("x10", "vy"): "measured 98.6 / 100.0 %: the σ_vy floor 0.02 m/s (the RAV4's straight-line "
+                   "v_y error) is 3× this plant's",
+    ("s1_004", "vx"): f"measured 100.0 / 100.0 %: a simulated plant's radius is the file's; "
+                      f"{_RADIUS}",
+    ("s1_017", "vx"): f"measured 100.0 / 100.0 %: a simulated plant's radius is the file's; "
+                      f"{_RADIUS}",
+}
+
+
+@cache
+def _independent(name: str) -> dict[str, tuple]:
+    log_path, vehicle_path, drop = INDEPENDENT[name]
+    truth = read_log(SHARED / log_path)
+    meas = truth[[c for c in truth.columns if not c.startswith("ref_") and c not in drop]]
+    est = Pipeline(load_vehicle(SHARED / vehicle_path)).run(meas)
+    table = coverage(est, truth, channels=["vx", "vy"]).set_index("channel")
+    return {q: (table.loc[q, "within_1sigma"], table.loc[q, "within_2sigma"])
+            for q in ("vx", "vy")}
+
+
+def _independent_case(name: str, q: str) -> object:
+    measured = INDEPENDENT_MISSED.get((name, q))
+    if measured is None:
+        return (name, q)
+    return pytest.param(name, q, marks=pytest.mark.xfail(strict=True, reason=measured))
+
+
+@pytest.mark.parametrize(("name", "q"), [_independent_case(n, q) for n in INDEPENDENT
+                                          for q in ("vx", "vy")])
+def test_coverage_on_independent_logs(name: str, q: str) -> None:
+    """σ_vx and σ_vy as ``vestim estimate`` writes them (the default coefficients), on real,
+    crossplant and campaign logs one by one: 1σ within 60–80 %, 2σ within 90–98 %."""
+    if not (SHARED / INDEPENDENT[name][0]).is_file():
+        pytest.skip(f"../shared/{INDEPENDENT[name][0]} not present")
+    c = _independent(name)[q]
+    assert _in_band(c), f"{name} {q}: {100 * c[0]:.1f} / {100 * c[1]:.1f} %"
