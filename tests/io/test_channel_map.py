@@ -531,6 +531,28 @@ def test_wheels_fallback_recovers_a_known_mounting_on_crossplant(tmp_path):
     assert abs(rep.mounting["roll_deg"] - 0.5) < 0.4
 
 
+@needs_crossplant
+def test_an_automatic_mounting_beyond_30_degrees_is_refused(tmp_path):
+    """The same x10 phone yawed 54° (what issue 30 saw a map with the wrong frame produce): an
+    automatic angle beyond ±30° is refused, naming the angle, the limit and the fix, rather
+    than rotating the log by it."""
+    d = pd.read_parquet(CROSSPLANT / "x10_mixed_drive_fwd.parquet")
+    to_sensor = frame_matrix("FRD").T @ mounting_matrix(0.0, 0.0, -54.0).T
+    acc = d[["ax", "ay", "az"]].to_numpy() @ to_sensor.T
+    gyro = d[["roll_rate", "pitch_rate", "yaw_rate"]].to_numpy() @ to_sensor.T
+    wheels = ["omega_fl", "omega_fr", "omega_rl", "omega_rr"]
+    src = pd.DataFrame({"t": d["t"], **{f"a{i}": acc[:, i] for i in range(3)},
+                        **{f"g{i}": gyro[:, i] for i in range(3)}, **{c: d[c] for c in wheels}})
+    chans = {**{c: {"source": c, "unit": "rad/s"} for c in wheels},
+             **{c: {"source": f"a{i}", "unit": "m/s^2"} for i, c in enumerate(IMU[:3])},
+             **{c: {"source": f"g{i}", "unit": "rad/s"} for i, c in enumerate(IMU[3:])}}
+    p = tmp_path / "phone.parquet"
+    src.to_parquet(p)
+    m = _map(chans, imu={"frame": "FRD", "mounting": "auto"}, output={"rate": 200.0})
+    with pytest.raises(ChannelMapError, match=r"found yaw = -5\d\.\d°, beyond ±30°.*frame"):
+        apply_channel_map(p, parse_channel_map(m))
+
+
 @needs_rav4
 def test_cli_import_writes_the_log_with_its_report(tmp_path):
     out = tmp_path / "rav4.parquet"

@@ -80,6 +80,10 @@ AUTO_STRAIGHT_YAW_RATE = 0.02
 """rad/s; "straight" samples yaw slower than this (0.4 m/s² of lateral acceleration at 20 m/s)."""
 AUTO_MIN_SAMPLES = 100
 """Minimum number of samples each automatic fit needs."""
+AUTO_MOUNT_MAX_DEG = 30.0
+"""deg; largest angle an automatic mounting may find (the limit of a calibrated mounting,
+:data:`vestim.io.calibration.MOUNT_MAX`): beyond it the map's ``frame`` or an axis sign is
+wrong, which a fit would turn into a plausible-looking rotation (issue 30: −54° of yaw)."""
 
 
 class ChannelMapError(VestimError, ValueError):
@@ -1036,6 +1040,13 @@ def _imu_to_body(cmap: ChannelMap, data: dict[str, np.ndarray], grid: np.ndarray
         found, how = _auto_mounting(cmap, vec.get(acc_names), vec.get(gyro_names), data, grid,
                                     pose_streams, given=angles)
         for axis in m.auto:
+            if not abs(found[axis]) <= AUTO_MOUNT_MAX_DEG:
+                raise ChannelMapError(
+                    f"[imu] mounting \"auto\" found {axis} = {found[axis]:.1f}°, beyond "
+                    f"±{AUTO_MOUNT_MAX_DEG:.0f}°: a residual misalignment is a few degrees, so "
+                    "the map's axes are likely wrong (check [imu] frame and the signs of the "
+                    "IMU channels' expr against `vestim channels`); if the sensor really is "
+                    f"turned that far, give the angles: mounting = {{{axis}_deg = …}}")
             angles[axis] = found[axis]
             method[axis] = how[axis]
     r = mounting_matrix(angles["roll"], angles["pitch"], angles["yaw"])
