@@ -1,0 +1,99 @@
+"""Issue 31's selection of calibrated values (``vestim.design.calibrate.select``): the two
+tests in closed form, then the figures on independent data (../shared/crossplant)."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from vestim.design.calibrate import calibrate
+from vestim.design.calibrate.select import K_SIGMA, Fold, decide, nominal_values
+from vestim.io import load_vehicle
+from vestim.io.calibration import Identified
+from vestim.pipeline import Pipeline
+
+DATA = Path(__file__).resolve().parents[2] / ".." / "shared" / "crossplant" / "data"
+
+
+def _v(value: float, sigma: float) -> Identified:
+    return Identified(value, sigma, True, "test", "N/rad")
+
+
+def test_a_value_within_k_sigma_of_the_nominal_keeps_the_nominal():
+    """|1.15 − 1| / 0.1 = 1.5σ ≤ 2σ: the logs do not show the nominal is wrong, whatever
+    the folds say."""
+    good = [Fold(_v(1.15, 0.1), _v(1.15, 0.1))] * 2
+    out = decide("cy_f", _v(1.15, 0.1), 1.0, good)
+    assert not out.used and "within 1.5σ ≤ 2σ" in out.decision
+    assert K_SIGMA == 2.0
+
+
+def test_held_out_residuals_decide_a_significant_value():
+    """Value 1.5 ± 0.1 (5σ from nominal 1). Folds whose held-out logs find 1.5 ± 0.1 from
+    training values 1.45, 1.55: χ² (0.5² + 0.5²) = 0.5 against the nominal's 25 + 25 = 50:
+    used. Held-out logs that find 1.0 (the value is one manoeuvre's): χ² 2·(4.5² … 5.5²)
+    against 0: the nominal stays. A training set that did not excite it predicts with the
+    nominal (equal χ²: not an improvement); no scored fold: the nominal stays."""
+    used = decide("cy_f", _v(1.5, 0.1), 1.0, [Fold(_v(1.45, 0.1), _v(1.5, 0.1)),
+                                               Fold(_v(1.55, 0.1), _v(1.5, 0.1))])
+    assert used.used and "held-out χ² 0.5 against the nominal's 50 (2 folds)" in used.decision
+    other = decide("cy_f", _v(1.5, 0.1), 1.0, [Fold(_v(1.45, 0.1), _v(1.0, 0.1)),
+                                                Fold(_v(1.55, 0.1), _v(1.0, 0.1))])
+    assert not other.used and "nominal 1 N/rad kept" in other.decision
+    lone = decide("cy_f", _v(1.5, 0.1), 1.0,
+                  [Fold(Identified.not_excited(1.0, "straight", "N/rad"), _v(1.5, 0.1)),
+                   Fold(_v(1.5, 0.1), Identified.not_excited(1.0, "straight", "N/rad"))])
+    assert not lone.used and "held-out χ² 25 against the nominal's 25 (1 fold)" in lone.decision
+    none = decide("cy_f", _v(1.5, 0.1), 1.0, [])
+    assert not none.used and "no held-out log excites it" in none.decision
+    reported = decide("gnss_latency", _v(0.1, 0.01), None, [])
+    assert reported.used and reported.decision.startswith("reported only")
+
+
+needs_data = pytest.mark.skipif(not (DATA / "manifest.json").is_file(),
+                                reason=f"crossplant data not found at {DATA}")
+
+
+def _log(prefix: str) -> pd.DataFrame:
+    man = json.loads((DATA / "manifest.json").read_text())["maneuvers"]
+    return pd.read_parquet(DATA / next(v["file"] for k, v in man.items() if k.startswith(prefix)))
+
+
+@needs_data
+def test_x09_no_longer_worse_with_the_file_calibrated_from_x02_and_x05():
+    """Issue 31 on independent data: x09 (accelerating turn into a friction drop, RWD,
+    vehicle2) scored with vehicle2 calibrated from x02 and x05. Every excited value used:
+    v_y RMSE 0.036 → 0.059 m/s (docs/results.md, the cornering stiffness x05's sine steer
+    finds, 117 kN/rad against the nominal prior's 88, is not seen on x02: no held-out
+    evidence). With the selection the stiffness stays nominal and v_y is within the issue's
+    0.005 m/s of the nominal file's."""
+    result = calibrate([_log("x02"), _log("x05")], str(DATA / "vehicle2.toml"))
+    for key in ("cy_f", "cy_r"):
+        v = result.values[key]
+        assert v.excited and not v.used, v.decision
+    log = _log("x09")
+    meas = log[[c for c in log.columns if not c.startswith("ref_")]]
+    keep = log["t"].to_numpy() >= 0.5
+
+    def vy_rmse(veh) -> float:
+        est = Pipeline(veh).run(meas)
+        return float(np.sqrt(np.mean((est["vy"].to_numpy() - log["ref_vy"].to_numpy())[keep] ** 2)))
+
+    nominal = vy_rmse(load_vehicle(str(DATA / "vehicle2.toml")))
+    assert vy_rmse(result.vehicle) <= nominal + 0.005
+
+
+@needs_data
+def test_nominal_values_are_what_the_estimators_use_without_a_calibration():
+    """vehicle2's cornering-stiffness prior σ0y/κy = 15 per unit load on the static axle
+    loads m·g·l_r/L, m·g·l_f/L; the radii are [vehicle] wheel_radius."""
+    veh = load_vehicle(str(DATA / "vehicle2.toml"))
+    nom = nominal_values(veh)
+    b, t = veh.body, veh.tire
+    front = b.mass * 9.81 * b.lr / (b.lf + b.lr)
+    assert nom["cy_f"] == pytest.approx(t.sigma0_y / t.kappa_y * front, rel=1e-12)
+    assert nom["radius_rl"] == b.wheel_radius and nom["steering_offset"] == 0.0
