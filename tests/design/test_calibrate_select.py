@@ -97,3 +97,42 @@ def test_nominal_values_are_what_the_estimators_use_without_a_calibration():
     front = b.mass * 9.81 * b.lr / (b.lf + b.lr)
     assert nom["cy_f"] == pytest.approx(t.sigma0_y / t.kappa_y * front, rel=1e-12)
     assert nom["radius_rl"] == b.wheel_radius and nom["steering_offset"] == 0.0
+
+
+RAV4 = Path(__file__).resolve().parents[2] / ".." / "shared" / "real" / "comma2k19_rav4"
+needs_rav4 = pytest.mark.skipif(not (RAV4 / "seg40.parquet").is_file(),
+                                reason=f"RAV4 log not found at {RAV4}")
+
+
+def _rav4_vx_rmse() -> tuple[float, float]:
+    """v_x RMSE (m/s) of the RAV4 log estimated without gnss_speed, nominal and with the
+    file calibrated (with the selection) from seg40 itself."""
+    log = pd.read_parquet(RAV4 / "seg40.parquet")
+    meas = log[[c for c in log.columns if not c.startswith("ref_")]]
+    result = calibrate([meas], str(RAV4 / "vehicle.toml"), names=["seg40"])
+    for c in ("fl", "fr", "rl", "rr"):  # both halves find the same 0.86 % scale: used
+        assert result.values[f"radius_{c}"].used, result.values[f"radius_{c}"].decision
+    nognss = meas.drop(columns=["gnss_speed"])
+
+    def rmse(veh) -> float:
+        est = Pipeline(veh).run(nognss)
+        e = np.interp(log["t"], est["t"], est["vx"]) - log["ref_vx"]
+        return float(np.sqrt(np.mean(e ** 2)))
+
+    return rmse(load_vehicle(str(RAV4 / "vehicle.toml"))), rmse(result.vehicle)
+
+
+@needs_rav4
+def test_rav4_vx_with_the_selected_calibration():
+    """The real car (independent data): nominal 0.142 m/s, calibrated 0.070 m/s: the wheel
+    scale from gnss_speed is kept by the selection, so nothing of issue 13's gain is lost."""
+    nominal, calibrated = _rav4_vx_rmse()
+    assert nominal == pytest.approx(0.142, abs=0.005)
+    assert calibrated <= 0.075
+
+
+@needs_rav4
+@pytest.mark.xfail(strict=True, reason="issue 31's target 0.06 m/s is missed: 0.070 m/s (see "
+                   "docs/calibration.md: the remainder is not a calibration error)")
+def test_rav4_vx_target_0p06():
+    assert _rav4_vx_rmse()[1] <= 0.06

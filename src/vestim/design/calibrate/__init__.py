@@ -29,7 +29,7 @@ from pathlib import Path
 
 import pandas as pd
 
-from vestim.design.calibrate.select import Fold, decide, nominal_values
+from vestim.design.calibrate.select import Fold, couple, decide, nominal_values
 from vestim.errors import LogFormatError
 from vestim.io.calibration import (
     KEYS,
@@ -160,6 +160,7 @@ def calibrate(
                     continue
                 found[0][k] = decide(k, found[0][k], nominal.get(k),
                                      [Fold(found[a].get(k), found[h].get(k)) for a, h in folds])
+            found[0] = couple(found[0])
             for j in range(1, len(sets)):
                 for k, v in found[j].items():
                     if k in found[0] and not found[0][k].used:

@@ -17,6 +17,13 @@ where two tests both say the nominal value is wrong and the identified one gener
    which θ₋ᵢ was not excited uses the nominal value (what the estimators would use), so a
    value that only one log excites has no held-out evidence and is not used.
 
+One value can also reach the estimators through another: the Pipeline's cornering-stiffness
+prior is the calibrated ``cy_f + cy_r`` when both are used, else the ``[tire]`` table's
+σ0y/κy. The LuGre lateral values ``sigma0_y`` and ``kappa_y`` are therefore used only
+together with ``cy_f`` and ``cy_r`` (:func:`couple`): otherwise a LuGre fit would move the
+prior that the direct identification was refused for (on the campaign's s1_021, κ_y 4.0
+against 12 made the prior 3× stiffer and v_y 0.090 → 0.185 m/s).
+
 A value without a nominal (``gnss_latency``, ``understeer_gradient``: reported only) is not
 tested. The decision is stated in the calibrated file (``used_<key>``, ``decision_<key>``)
 and in the report. The thresholds are fixed (``K_SIGMA``); nothing is tuned per log.
@@ -120,3 +127,23 @@ def decide(key: str, value: Identified, nominal: float | None, folds: Sequence[F
         return replace(value, used=False, decision=why)
     return replace(value, used=True,
                    decision=f"used: {z:.2g}σ from nominal {nominal:.6g}{unit}; {cv}")
+
+
+COUPLED = {"sigma0_y": ("cy_f", "cy_r"), "kappa_y": ("cy_f", "cy_r")}
+"""Values used only where the values they imply are used: σ0y/κy is the Pipeline's
+cornering-stiffness prior per unit load unless ``cy_f`` and ``cy_r`` are used."""
+
+
+def couple(values: dict[str, Identified]) -> dict[str, Identified]:
+    """``values`` with each :data:`COUPLED` value not used where its partners are not."""
+    out = dict(values)
+    for key, partners in COUPLED.items():
+        v = out.get(key)
+        if v is None or not v.used or not v.excited:
+            continue
+        missing = [p for p in partners if p not in out or not out[p].excited or not out[p].used]
+        if missing:
+            out[key] = replace(v, used=False, decision=(
+                f"nominal kept: σ0y/κy is the cornering-stiffness prior, and {', '.join(missing)} "
+                f"(its direct identification) is not used; alone: {v.decision}"))
+    return out
