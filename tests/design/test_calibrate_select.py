@@ -4,6 +4,7 @@ tests in closed form, then the figures on independent data (../shared/crossplant
 from __future__ import annotations
 
 import json
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -11,7 +12,7 @@ import pandas as pd
 import pytest
 
 from vestim.design.calibrate import calibrate
-from vestim.design.calibrate.select import K_SIGMA, Fold, decide, nominal_values
+from vestim.design.calibrate.select import K_SIGMA, Fold, couple, decide, nominal_values
 from vestim.io import load_vehicle
 from vestim.io.calibration import Identified
 from vestim.pipeline import Pipeline
@@ -52,6 +53,18 @@ def test_held_out_residuals_decide_a_significant_value():
     assert not none.used and "no held-out log excites it" in none.decision
     reported = decide("gnss_latency", _v(0.1, 0.01), None, [])
     assert reported.used and reported.decision.startswith("reported only")
+
+
+def test_kappa_y_follows_the_cornering_stiffness_it_implies():
+    """σ0y/κy is the Pipeline's cornering-stiffness prior unless cy_f and cy_r are used: a
+    κ_y that passed its own tests is not used where cy_f was refused (the back door of the
+    campaign's s1_021: κ_y 4.0 against 12, v_y 0.090 → 0.185 m/s), and is where both are
+    used."""
+    ky = Identified(4.0, 0.04, True, "fit", "1/m", used=True, decision="used: 200σ")
+    cy = Identified(9e4, 1e3, True, "fit", "N/rad", used=True, decision="used")
+    refused = couple({"kappa_y": ky, "cy_f": replace(cy, used=False), "cy_r": cy})
+    assert not refused["kappa_y"].used and "cy_f (its direct" in refused["kappa_y"].decision
+    assert couple({"kappa_y": ky, "cy_f": cy, "cy_r": cy})["kappa_y"].used
 
 
 needs_data = pytest.mark.skipif(not (DATA / "manifest.json").is_file(),
