@@ -14,7 +14,7 @@ unchanged and adds what it identified from the logs, one table per group::
     excited_radius_fl = true           # false: the logs did not determine it
     evidence_radius_fl = "x05: 41 s of straight free rolling at 8-27 m/s"
     used_radius_fl = true              # false: the nominal value stays (decision_<key>)
-    decision_radius_fl = "used: 5.1σ from nominal 0.35 m; held-out χ² 3.2 < 40.8 (2 logs)"
+    decision_radius_fl = "used: 22σ from nominal 0.35 m; held-out χ² 1.05 against ..."
 
 A value the logs did not excite keeps the base value, with ``excited_<key> = false``,
 ``sigma_<key> = nan`` and the reason as its evidence. An excited value is used only when it
