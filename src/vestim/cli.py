@@ -478,9 +478,12 @@ def calibrate_cmd(
             console.print(f"[yellow]warning:[/yellow] {rich.markup.escape(f'{log}: {w.message}')}")
     values = result.values
     idle = sorted(k for k, v in values.items() if not v.excited)
+    kept = sorted(k for k, v in values.items() if v.excited and not v.used)
     console.print(rich.markup.escape(
         f"wrote {path}: {len(values) - len(idle)} values identified, {len(idle)} not excited"
         + (f" ({', '.join(idle)})" if idle else "")
+        + (f"; nominal kept for {len(kept)} identified (not better on the held-out logs or "
+           f"within 2σ: {', '.join(kept)})" if kept else "")
         + (f"; report {md}" if md is not None else "")))
 
 

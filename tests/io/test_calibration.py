@@ -94,3 +94,23 @@ def test_vehicle_file_with_calibration_loads(tmp_path):
     assert veh.calibration is not None
     assert veh.calibration.excited("wheels", "radius_fl") == 0.34
     assert load_vehicle("hashemi_suv").calibration is None
+
+
+def test_a_value_the_selection_rejected_is_not_applied_and_its_reason_round_trips():
+    """Issue 31: ``used_<key> = false`` keeps the nominal value (``excited()`` None, ω not
+    scaled); ``decision_<key>`` survives the round trip; a file written before the selection
+    (no ``used_``) uses every excited value."""
+    rejected = Identified(0.34, 0.001, True, "x05: 40 s", "m", used=False,
+                          decision="nominal 0.33 m kept: 1.5σ ≤ 2σ")
+    cal = Calibration({"wheels": {"radius_fl": rejected}})
+    back = parse_calibration(tomllib.loads(calibration_toml(cal))["calibration"])
+    assert back.get("wheels", "radius_fl") == rejected
+    assert back.excited("wheels", "radius_fl") is None
+    df = pd.DataFrame({"t": [0.0], "omega_fl": [30.0]})
+    out = corrected_log(df, back, wheel_radius=0.33, steering_ratio=15.0)
+    assert out["omega_fl"].iloc[0] == 30.0
+    old = parse_calibration({"wheels": {"radius_fl": 0.34, "sigma_radius_fl": 0.001}})
+    assert old.excited("wheels", "radius_fl") == 0.34
+    with pytest.raises(VehicleFileError, match=r"used_radius_fl = 'no' must be true or false"):
+        parse_calibration({"wheels": {"radius_fl": 0.34, "sigma_radius_fl": 0.001,
+                                      "used_radius_fl": "no"}})

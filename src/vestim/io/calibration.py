@@ -13,10 +13,17 @@ unchanged and adds what it identified from the logs, one table per group::
     sigma_radius_fl = 0.0004           # its one-σ uncertainty
     excited_radius_fl = true           # false: the logs did not determine it
     evidence_radius_fl = "x05: 41 s of straight free rolling at 8-27 m/s"
+    used_radius_fl = true              # false: the nominal value stays (decision_<key>)
+    decision_radius_fl = "used: 22σ from nominal 0.35 m; held-out χ² 1.05 against ..."
 
 A value the logs did not excite keeps the base value, with ``excited_<key> = false``,
-``sigma_<key> = nan`` and the reason as its evidence. The keys of each group and their
-units are :data:`KEYS`. How the estimators use them (:func:`corrected_log` and the stages):
+``sigma_<key> = nan`` and the reason as its evidence. An excited value is used only when it
+passed ``vestim calibrate``'s selection (:mod:`vestim.design.calibrate.select`: more than
+k·σ from the nominal value and better than it on the held-out logs); otherwise
+``used_<key> = false`` and ``decision_<key>`` says why the nominal value stays. A file
+without ``used_<key>`` (written before the selection) uses every excited value. The keys of
+each group and their units are :data:`KEYS`. How the estimators use them
+(:func:`corrected_log` and the stages):
 
 - ``wheels``: each wheel's effective rolling radius; ``omega_<c>`` is scaled by
   radius_<c> / ``[vehicle] wheel_radius`` before estimation. ``radius_scale`` (their mean
@@ -86,6 +93,9 @@ class Identified:
             seconds or samples, over which range (e.g. "x05, x08: 41 s of straight free
             rolling at 8-27 m/s"), or why it was not excited.
         unit: the value's unit, e.g. "m", "rad", "m/s^2", "N/rad", "-".
+        used: False when the selection kept the nominal value
+            (:mod:`vestim.design.calibrate.select`); the estimators then ignore ``value``.
+        decision: the selection's reason, for the report ("" before the selection).
     """
 
     value: float
@@ -93,6 +103,8 @@ class Identified:
     excited: bool
     evidence: str
     unit: str
+    used: bool = True
+    decision: str = ""
 
     def __post_init__(self) -> None:
         if not math.isfinite(self.value):
@@ -120,9 +132,10 @@ class Calibration:
         return self.groups.get(group, {}).get(key)
 
     def excited(self, group: str, key: str) -> float | None:
-        """The value if the logs determined it, else None."""
+        """The value the estimators use: determined by the logs and kept by the selection
+        (``used``, :mod:`vestim.design.calibrate.select`); else None (the nominal stays)."""
         v = self.get(group, key)
-        return v.value if v is not None and v.excited else None
+        return v.value if v is not None and v.excited and v.used else None
 
 
 def length_unit(value: float, typical: float) -> str:
@@ -197,6 +210,10 @@ def _range_error(where: str, key: str, value: float, unit: str) -> VehicleFileEr
                             f"[{lo:g}, {hi:g}] {unit}; {fix}")
 
 
+SUFFIXED = ("sigma_", "excited_", "evidence_", "used_", "decision_")
+"""The prefixes of the keys that describe a value ``<key>`` of a ``[calibration.<group>]``."""
+
+
 def parse_calibration(table: Any) -> Calibration:
     """Validate a ``[calibration]`` table (parsed TOML); errors name ``[calibration.<g>] key``."""
     if not isinstance(table, dict):
@@ -220,32 +237,37 @@ def parse_calibration(table: Any) -> Calibration:
         where = f"[calibration.{group}]"
         if not isinstance(g, dict):
             raise VehicleFileError(f"{where} must be a table")
-        allowed = {f"{p}{k}" for k in units for p in ("", "sigma_", "excited_", "evidence_")}
+        allowed = {f"{p}{k}" for k in units for p in ("", *SUFFIXED)}
         bad = sorted(set(g) - allowed)
         if bad:
             raise VehicleFileError(f"{where} unknown key(s) {', '.join(bad)}; allowed: "
-                                   f"{', '.join(units)} and their sigma_, excited_, evidence_")
+                                   f"{', '.join(units)} and their {', '.join(SUFFIXED)}")
         values: dict[str, Identified] = {}
         for key, unit in units.items():
             if key not in g:
-                extra = [k for k in (f"sigma_{key}", f"excited_{key}", f"evidence_{key}") if k in g]
+                extra = [f"{p}{key}" for p in SUFFIXED if f"{p}{key}" in g]
                 if extra:
                     raise VehicleFileError(f"{where} {extra[0]} without {key}")
                 continue
             value, sigma = g[key], g.get(f"sigma_{key}", math.nan)
             excited, evidence = g.get(f"excited_{key}", True), g.get(f"evidence_{key}", "")
+            used, decision = g.get(f"used_{key}", True), g.get(f"decision_{key}", "")
             for name, v in ((key, value), (f"sigma_{key}", sigma)):
                 if isinstance(v, bool) or not isinstance(v, int | float):
                     raise VehicleFileError(f"{where} {name} = {v!r} must be a number")
-            if not isinstance(excited, bool):
-                raise VehicleFileError(f"{where} excited_{key} = {excited!r} must be true or false")
-            if not isinstance(evidence, str):
-                raise VehicleFileError(f"{where} evidence_{key} must be a string")
+            for name, flag in (("excited", excited), ("used", used)):
+                if not isinstance(flag, bool):
+                    raise VehicleFileError(f"{where} {name}_{key} = {flag!r} must be true or "
+                                           "false")
+            for name, text in (("evidence", evidence), ("decision", decision)):
+                if not isinstance(text, str):
+                    raise VehicleFileError(f"{where} {name}_{key} must be a string")
             try:
                 problem = _range_error(where, key, float(value), unit)
                 if problem is not None:
                     raise problem
-                values[key] = Identified(float(value), float(sigma), excited, evidence, unit)
+                values[key] = Identified(float(value), float(sigma), excited, evidence, unit,
+                                         used, decision)
             except (ValueError, OverflowError) as exc:
                 if isinstance(exc, VehicleFileError):
                     raise
@@ -289,6 +311,9 @@ def calibration_toml(cal: Calibration) -> str:
                       f"sigma_{key} = {toml_value(v.sigma)}",
                       f"excited_{key} = {toml_value(v.excited)}",
                       f"evidence_{key} = {toml_value(v.evidence)}"]
+            if v.excited:
+                lines += [f"used_{key} = {toml_value(v.used)}",
+                          f"decision_{key} = {toml_value(v.decision)}"]
     return "\n".join(lines) + "\n"
 
 

@@ -29,6 +29,7 @@ from pathlib import Path
 
 import pandas as pd
 
+from vestim.design.calibrate.select import Fold, couple, decide, nominal_values
 from vestim.errors import LogFormatError
 from vestim.io.calibration import (
     KEYS,
@@ -84,6 +85,7 @@ def calibrate(
     *,
     names: Sequence[str] | None = None,
     progress: Callable[[str, float], None] | None = None,
+    select: bool = True,
 ) -> CalibrationResult:
     """Identify sensors, body and tires of one car from its logs.
 
@@ -92,6 +94,10 @@ def calibrate(
         vehicle: the base vehicle file (its values are kept for what the logs do not excite).
         names: a name per log for the evidence (default: the paths, or ``log<i>``).
         progress: called with (step name, fraction of the steps done).
+        select: decide which identified values the estimators use
+            (:mod:`vestim.design.calibrate.select`: more than ``K_SIGMA``·σ from the nominal
+            value and better than it on the held-out logs); False: every excited value is
+            used (the behaviour before issue 31, for comparison).
 
     Returns:
         The calibration and the base vehicle with it attached.
@@ -117,28 +123,67 @@ def calibrate(
                 f"least {MIN_LOG_S:g} s per log (its fits use 1 s windows), and minutes of "
                 "driving to excite most values: give a longer log or leave this one out")
     checks = tuple(gate(df, base, source=name) for df, name in zip(raw, names, strict=True))
-    found: dict[str, Identified] = {}
-    timings: dict[str, float] = {}
     steps: list[tuple[str, Callable[[Sequence[pd.DataFrame], Vehicle], dict[str, Identified]]]] = [
         ("imu", sensors.identify_imu), ("wheels", sensors.identify_wheels),
         ("steering", sensors.identify_steering), ("body", body_tire.identify_body),
         ("tire", body_tire.identify_tires)]
-    veh = base
+    # The data sets identified side by side: all logs, then each leave-one-out fold's
+    # training logs and held-out log (select.py); each step sees every set corrected by the
+    # values used so far.
+    held = _held_out(raw) if select else []
+    sets: list[list[pd.DataFrame]] = [raw]
+    index: dict[tuple[int, ...], int] = {tuple(map(id, raw)): 0}
+    folds: list[tuple[int, int]] = []  # the sets of each fold: (training, held out)
+    for pair in held:
+        for data in pair:  # with two logs, one fold's training set is the other's held out
+            index.setdefault(tuple(map(id, data)), len(sets))
+            if index[tuple(map(id, data))] == len(sets):
+                sets.append(data)
+        folds.append((index[tuple(map(id, pair[0]))], index[tuple(map(id, pair[1]))]))
+    found: list[dict[str, Identified]] = [{} for _ in sets]
+    nominal = nominal_values(base)
+    timings: dict[str, float] = {}
+    b = base.body
     for i, (step, fn) in enumerate(steps):
         if progress is not None:
             progress(step, i / len(steps))
         t0 = time.perf_counter()
-        cal = _calibration(found, base, names)
-        veh = replace(base, calibration=cal)
-        b = base.body
-        corrected = [corrected_log(df, cal, wheel_radius=b.wheel_radius,
-                                   steering_ratio=b.steering_ratio) for df in raw]
-        found.update(fn(corrected, replace(base, calibration=None) if step == "imu" else veh))
+        for j, data in enumerate(sets):
+            cal = _calibration(found[j], base, names)
+            corrected = [corrected_log(df, cal, wheel_radius=b.wheel_radius,
+                                       steering_ratio=b.steering_ratio) for df in data]
+            veh = replace(base, calibration=None if step == "imu" else cal)
+            found[j].update(fn(corrected, veh))
+        if select:  # the decisions on all logs, applied to every set before the next step
+            for k in list(found[0]):
+                if found[0][k].decision or not found[0][k].excited:
+                    continue
+                found[0][k] = decide(k, found[0][k], nominal.get(k),
+                                     [Fold(found[a].get(k), found[h].get(k)) for a, h in folds])
+            found[0] = couple(found[0])
+            for j in range(1, len(sets)):
+                for k, v in found[j].items():
+                    if k in found[0] and not found[0][k].used:
+                        found[j][k] = replace(v, used=False)
         timings[step] = time.perf_counter() - t0
     if progress is not None:
         progress("done", 1.0)
-    cal = _calibration(found, base, names)
+    cal = _calibration(found[0], base, names)
     return CalibrationResult(cal, replace(base, calibration=cal), timings, checks)
+
+
+def _held_out(raw: Sequence[pd.DataFrame]) -> list[tuple[list[pd.DataFrame], list[pd.DataFrame]]]:
+    """The leave-one-out folds over the logs, (training logs, held-out log); one log is split
+    into its two halves in time (none where a half is shorter than :data:`MIN_LOG_S`)."""
+    if len(raw) == 1:
+        df = raw[0]
+        t = df["t"].to_numpy(dtype=float)
+        mid = 0.5 * (t[0] + t[-1])
+        halves = [df[t < mid].reset_index(drop=True), df[t >= mid].reset_index(drop=True)]
+        if any(float(h["t"].iloc[-1] - h["t"].iloc[0]) < MIN_LOG_S for h in halves):
+            return []
+        return [([halves[1]], [halves[0]]), ([halves[0]], [halves[1]])]
+    return [([d for j, d in enumerate(raw) if j != i], [raw[i]]) for i in range(len(raw))]
 
 
 def _calibration(found: dict[str, Identified], base: Vehicle, names: Sequence[str]) -> Calibration:
@@ -201,8 +246,9 @@ def write_report(result: CalibrationResult, out_dir: str | os.PathLike[str]) -> 
 
     d = Path(out_dir)
     values = result.values
-    base = _base_values(result.vehicle)
-    rows = ["| group | key | value | σ | base | unit | evidence |", "|---|---|---|---|---|---|---|"]
+    base = nominal_values(result.vehicle)
+    rows = ["| group | key | value | σ | base | unit | evidence | used: why |",
+            "|---|---|---|---|---|---|---|---|"]
     idle = ["| group | key | base kept | why |", "|---|---|---|---|"]
     for group, keys in KEYS.items():
         for key in keys:
@@ -212,7 +258,8 @@ def write_report(result: CalibrationResult, out_dir: str | os.PathLike[str]) -> 
             b = base.get(key, math.nan)
             if v.excited:
                 rows.append(f"| {group} | `{key}` | {v.value:.6g} | {v.sigma:.2g} | {b:.6g} | "
-                            f"{v.unit} | {v.evidence} |")
+                            f"{v.unit} | {v.evidence} | {'yes' if v.used else 'no'}: "
+                            f"{v.decision or 'no selection'} |")
             else:
                 idle.append(f"| {group} | `{key}` | {v.value:.6g} | {v.evidence} |")
     excited = [(k, v) for k, v in values.items() if v.excited and math.isfinite(base.get(k, math.nan))
@@ -250,15 +297,3 @@ def write_report(result: CalibrationResult, out_dir: str | os.PathLike[str]) -> 
     with atomic_path(path) as tmp:
         tmp.write_text(md, encoding="utf-8")
     return path
-
-
-def _base_values(vehicle: Vehicle) -> dict[str, float]:
-    """The base file's value of each calibration key, where it has one."""
-    b, t = vehicle.body, vehicle.tire
-    out: dict[str, float] = {f"radius_{c}": b.wheel_radius for c in ("fl", "fr", "rl", "rr")}
-    out.update({"steering_ratio": b.steering_ratio, "accel_scale": 1.0})
-    out.update({k: getattr(t, k) for k in LUGRE_KEYS})
-    if vehicle.stiffness is not None and "stiffness" in vehicle.given:
-        s = vehicle.stiffness
-        out.update({"cx_f": s.cx_f, "cx_r": s.cx_r, "cy_f": s.cy_f, "cy_r": s.cy_r})
-    return out
