@@ -8,7 +8,7 @@ from typer.testing import CliRunner
 from vestim.cli import app
 from vestim.io import load_vehicle, read_log, write_log
 from vestim.models.kinematics import slip_ratio
-from vestim.pipeline import Pipeline, PipelineConfig, PipelineConfigError
+from vestim.pipeline import Pipeline, PipelineConfig, PipelineConfigError, estimate
 from vestim.sim import get_maneuver, simulate
 
 SUV = load_vehicle("hashemi_suv")
@@ -359,3 +359,45 @@ def test_a_time_gap_restarts_the_filters_instead_of_integrating_across_it():
     rows = [stepper.step(s) for s in meas.to_dict("records")]
     np.testing.assert_allclose([r["vx"] for r in rows], est["vx"].to_numpy(), rtol=1e-9, atol=1e-9)
     assert len(stepper.gaps) == 1
+
+
+def test_the_library_announces_a_slow_first_compilation(monkeypatch, caplog):
+    """vestim.estimate() (and step()'s first call) say that they compile, as the CLI does: a
+    Numba compilation still running after 1 s is a warning on the "vestim" logger (stderr
+    without a logging setup). Made deterministic: the injected compilation lasts until the
+    warning was given; loading from the cache says nothing (the second run)."""
+    import logging
+    import threading
+
+    from numba.core import event
+
+    said = threading.Event()
+    real_run = Pipeline.run
+
+    class Flag(logging.Handler):
+        def emit(self, record: logging.LogRecord) -> None:
+            said.set()
+
+    def slow_run(self, log, *args, **kwargs):
+        event.start_event("numba:compile")
+        try:
+            assert said.wait(30.0), "no compile notice"
+        finally:
+            event.end_event("numba:compile")
+        return real_run(self, log, *args, **kwargs)
+
+    handler = Flag()
+    logging.getLogger("vestim").addHandler(handler)
+    try:
+        log = strip(simulate(get_maneuver("step_steer"), SUV, seed=0)).iloc[:400]
+        monkeypatch.setattr(Pipeline, "run", slow_run)
+        with caplog.at_level(logging.WARNING, logger="vestim"):
+            estimate(log, SUV)
+        assert any("compiling vestim's kernels" in r.getMessage() for r in caplog.records)
+        monkeypatch.setattr(Pipeline, "run", real_run)
+        caplog.clear()
+        with caplog.at_level(logging.WARNING, logger="vestim"):
+            estimate(log, SUV)
+        assert not any("compiling" in r.getMessage() for r in caplog.records)
+    finally:
+        logging.getLogger("vestim").removeHandler(handler)

@@ -37,6 +37,7 @@ the torque, attitude and a_z sources.
 from __future__ import annotations
 
 import itertools
+import logging
 import math
 from collections.abc import Callable, Iterable, Iterator, Mapping
 from dataclasses import replace
@@ -47,6 +48,7 @@ import numba
 import numpy as np
 import pandas as pd
 
+from vestim import _cache
 from vestim.constants import CORNERS, G
 from vestim.errors import LogFormatError
 from vestim.estimators import registry
@@ -650,8 +652,9 @@ class Pipeline:
         if self._stepper is None:
             self._stepper = rows_kernel.Stepper(*self._rows)
             if self._step_fn is None:  # the entry point for these types, typed once
-                self._step_fn = _compiled(rows_kernel.step_rows, self._stepper, self._x1,
-                                          self._y1)
+                with _cache.compile_notice(_LOG.warning):  # a first run compiles ~1 min
+                    self._step_fn = _compiled(rows_kernel.step_rows, self._stepper, self._x1,
+                                              self._y1)
         step_fn = self._step_fn
         assert step_fn is not None
         step_fn(self._stepper, self._x1, self._y1)
@@ -679,6 +682,9 @@ _ONES = np.ones(4)
 """The health of a stage that did not run in step() (1.0: healthy)."""
 
 _OMEGA_KEYS = tuple(f"omega_{c}" for c in CORNERS)
+
+_LOG = logging.getLogger("vestim")
+"""Where the library's compile notice goes (a warning: on stderr without a logging setup)."""
 
 UNVERIFIED_WARN = 0.01
 """Share of a run's rows with v_y unverified from which the output metadata warns."""
@@ -725,7 +731,8 @@ def estimate(
         log, require=["measured"], wheel_radius=veh.body.wheel_radius)
     checked = gate(df, veh, source="log" if isinstance(log, pd.DataFrame) else str(log))
     pipe = Pipeline(veh, config)
-    out = pipe.run(df)
+    with _cache.compile_notice(_LOG.warning):  # a first run compiles for about a minute
+        out = pipe.run(df)
     out.attrs.update(estimate_metadata(pipe, vehicle,
                                        source="DataFrame" if log is df else str(log),
                                        log_attrs=df.attrs, checked=checked))
