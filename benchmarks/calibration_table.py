@@ -106,14 +106,20 @@ def crossplant(record: dict[str, Any]) -> list[str]:
                 est.to_parquet(p)
                 figs[tag] = {k: float(v) for k, v in targets.judge(m, truth, p, veh_toml)[0].items()}
             record[m[:3]] = {"figs": figs, "used": used}
-            kept = sorted(k for k, u in used.items() if u)
-            lines.append(f"| {m[:3]} | {', '.join(o[:3] for o in others)} ({secs:.1f} s) | "
-                         + " | ".join(_cell(figs, f) for f in FIGS)
-                         + f" | {', '.join(_worse(figs, 'all', FIGS)) or 'none'}"
-                         + f" | {', '.join(_worse(figs, 'selected', FIGS)) or 'none'}"
-                         + f" | {', '.join(kept) or 'none'} ({len(kept)} of {len(used)}) |")
+            lines.append(_row(f"{m[:3]} | {', '.join(o[:3] for o in others)} ({secs:.1f} s)",
+                              figs, FIGS, used))
             print(m, "done", flush=True)
     return lines
+
+
+def _row(label: str, figs: Any, fields: Any, used: dict[str, bool]) -> str:
+    """One table row: the label, each figure nominal → all → selected, the channels worse
+    with every value and with the selection, and the values kept."""
+    kept = sorted(k for k, u in used.items() if u)
+    return (f"| {label} | " + " | ".join(_cell(figs, f) for f in fields)
+            + f" | {', '.join(_worse(figs, 'all', fields)) or 'none'}"
+            + f" | {', '.join(_worse(figs, 'selected', fields)) or 'none'}"
+            + f" | {', '.join(kept) or 'none'} ({len(kept)} of {len(used)}) |")
 
 
 def campaign(record: dict[str, Any]) -> list[str]:
@@ -148,11 +154,7 @@ def campaign(record: dict[str, Any]) -> list[str]:
                 figs[tag] = {ch: float("nan") if res[ch]["value"] is None
                              else float(res[ch]["value"]) for ch in CFIGS}
             record[sid] = {"figs": figs, "used": used}
-            kept = sorted(k for k, u in used.items() if u)
-            lines.append(f"| {sid[3:]} | " + " | ".join(_cell(figs, f) for f in CFIGS)
-                         + f" | {', '.join(_worse(figs, 'all', CFIGS)) or 'none'}"
-                         + f" | {', '.join(_worse(figs, 'selected', CFIGS)) or 'none'}"
-                         + f" | {', '.join(kept) or 'none'} ({len(kept)} of {len(used)}) |")
+            lines.append(_row(sid[3:], figs, CFIGS, used))
             print(sid, "done", flush=True)
     return lines
 

@@ -505,14 +505,11 @@ def test_comma2k19_wheels_fallback_is_reported(tmp_path):
     assert abs(rep.mounting["yaw_deg"] - MANIFEST_YAW) < 2.0
 
 
-@needs_crossplant
-def test_wheels_fallback_recovers_a_known_mounting_on_crossplant(tmp_path):
-    """x10 (120 s mixed drive) rotated into a phone (FRD) pitched 3°, yawed 1.5°, rolled 0.5°.
-    Yaw comes from the dω/dt regression: within 0.3°. Pitch and roll come from gravity on
-    straight, steady samples, so the log's accelerometer bias (0.05 m/s², atan(0.05/9.81) =
-    0.29°) and the body's own small attitude enter them: within 0.4°."""
+def _x10_phone(tmp_path: Path, roll: float, pitch: float, yaw: float) -> tuple[Path, dict]:
+    """Crossplant x10 (120 s mixed drive) rotated into a phone (FRD) mounted at roll, pitch,
+    yaw (deg): the file and a map with ``mounting = "auto"``."""
     d = pd.read_parquet(CROSSPLANT / "x10_mixed_drive_fwd.parquet")
-    to_sensor = frame_matrix("FRD").T @ mounting_matrix(0.5, 3.0, 1.5).T
+    to_sensor = frame_matrix("FRD").T @ mounting_matrix(roll, pitch, yaw).T
     acc = d[["ax", "ay", "az"]].to_numpy() @ to_sensor.T
     gyro = d[["roll_rate", "pitch_rate", "yaw_rate"]].to_numpy() @ to_sensor.T
     wheels = ["omega_fl", "omega_fr", "omega_rl", "omega_rr"]
@@ -523,7 +520,16 @@ def test_wheels_fallback_recovers_a_known_mounting_on_crossplant(tmp_path):
              **{c: {"source": f"g{i}", "unit": "rad/s"} for i, c in enumerate(IMU[3:])}}
     p = tmp_path / "phone.parquet"
     src.to_parquet(p)
-    m = _map(chans, imu={"frame": "FRD", "mounting": "auto"}, output={"rate": 200.0})
+    return p, _map(chans, imu={"frame": "FRD", "mounting": "auto"}, output={"rate": 200.0})
+
+
+@needs_crossplant
+def test_wheels_fallback_recovers_a_known_mounting_on_crossplant(tmp_path):
+    """x10 (120 s mixed drive) rotated into a phone (FRD) pitched 3°, yawed 1.5°, rolled 0.5°.
+    Yaw comes from the dω/dt regression: within 0.3°. Pitch and roll come from gravity on
+    straight, steady samples, so the log's accelerometer bias (0.05 m/s², atan(0.05/9.81) =
+    0.29°) and the body's own small attitude enter them: within 0.4°."""
+    p, m = _x10_phone(tmp_path, 0.5, 3.0, 1.5)
     _, rep = apply_channel_map(p, parse_channel_map(m))
     assert rep.mounting is not None
     assert abs(rep.mounting["yaw_deg"] - 1.5) < 0.3
@@ -536,19 +542,7 @@ def test_an_automatic_mounting_beyond_30_degrees_is_refused(tmp_path):
     """The same x10 phone yawed 54° (what issue 30 saw a map with the wrong frame produce): an
     automatic angle beyond ±30° is refused, naming the angle, the limit and the fix, rather
     than rotating the log by it."""
-    d = pd.read_parquet(CROSSPLANT / "x10_mixed_drive_fwd.parquet")
-    to_sensor = frame_matrix("FRD").T @ mounting_matrix(0.0, 0.0, -54.0).T
-    acc = d[["ax", "ay", "az"]].to_numpy() @ to_sensor.T
-    gyro = d[["roll_rate", "pitch_rate", "yaw_rate"]].to_numpy() @ to_sensor.T
-    wheels = ["omega_fl", "omega_fr", "omega_rl", "omega_rr"]
-    src = pd.DataFrame({"t": d["t"], **{f"a{i}": acc[:, i] for i in range(3)},
-                        **{f"g{i}": gyro[:, i] for i in range(3)}, **{c: d[c] for c in wheels}})
-    chans = {**{c: {"source": c, "unit": "rad/s"} for c in wheels},
-             **{c: {"source": f"a{i}", "unit": "m/s^2"} for i, c in enumerate(IMU[:3])},
-             **{c: {"source": f"g{i}", "unit": "rad/s"} for i, c in enumerate(IMU[3:])}}
-    p = tmp_path / "phone.parquet"
-    src.to_parquet(p)
-    m = _map(chans, imu={"frame": "FRD", "mounting": "auto"}, output={"rate": 200.0})
+    p, m = _x10_phone(tmp_path, 0.0, 0.0, -54.0)
     with pytest.raises(ChannelMapError, match=r"found yaw = -5\d\.\d°, beyond ±30°.*frame"):
         apply_channel_map(p, parse_channel_map(m))
 

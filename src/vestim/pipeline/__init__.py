@@ -54,12 +54,11 @@ from vestim.errors import LogFormatError
 from vestim.estimators import registry
 from vestim.estimators.force import ForceEstimator
 from vestim.estimators.force.estimator import (
-    REQUIRED,
     WHEEL_OUTPUTS,
     Inputs,
-    check_speeds,
-    check_torques,
+    front_angles,
     inputs_from_log,
+    sample_channels,
 )
 from vestim.estimators.friction import (
     corner_kx,
@@ -587,17 +586,7 @@ class Pipeline:
         keys = sample.keys()
         if self._layout is not None and keys == self._layout.keys:
             return self._layout
-        missing = [c for c in REQUIRED if c not in sample]
-        if missing:
-            raise LogFormatError(f"the force estimators need channel(s) {', '.join(missing)} "
-                                 "in every sample")
-        torques = check_torques(sample, "sample")
-        wheels = check_speeds(sample, "sample")
-        steering = next((k for k in ("delta_fl", "delta", "steering_wheel_angle") if k in sample
-                         and (k != "delta_fl" or "delta_fr" in sample)), None)
-        if steering is None:
-            raise LogFormatError("no steering channel: give delta_fl and delta_fr, delta, or "
-                                 "steering_wheel_angle")
+        torques, wheels, steering = sample_channels(sample)
         present = ("ax" in sample, "az" in sample, torques, wheels, "vehicle_speed" in sample,
                    "roll_rate" in sample, "pitch_rate" in sample)
         speed = "wheel_speeds" if wheels else "vehicle_speed" if present[4] else "gnss_speed"
@@ -625,14 +614,8 @@ class Pipeline:
             x[j] = float(sample[key]) if sensors.omega else nan
         for j, key in enumerate(_TORQUES, rows_kernel.X_TORQUE):
             x[j] = float(sample[key]) if sensors.torque else nan
-        if layout.steering == "delta_fl":
-            x[rows_kernel.X_DELTA] = float(sample["delta_fl"])
-            x[rows_kernel.X_DELTA + 1] = float(sample["delta_fr"])
-        else:
-            d = float(sample[layout.steering])
-            if layout.steering == "steering_wheel_angle":
-                d = d / self.vehicle.body.steering_ratio
-            x[rows_kernel.X_DELTA] = x[rows_kernel.X_DELTA + 1] = d
+        x[rows_kernel.X_DELTA], x[rows_kernel.X_DELTA + 1] = front_angles(
+            sample, layout.steering, self.vehicle.body.steering_ratio)
         x[rows_kernel.X_AX] = float(get("ax", nan))
         x[rows_kernel.X_AY] = float(get("ay", 0.0))
         x[rows_kernel.X_AZ] = float(get("az", nan))

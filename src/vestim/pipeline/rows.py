@@ -118,13 +118,10 @@ CORNER_KEYS = ("fl", "fr", "rl", "rr")
 X_T, X_OMEGA, X_TORQUE, X_AX, X_AY, X_AZ, X_R, X_P, X_Q, X_DELTA = 0, 1, 5, 9, 10, 11, 12, 13, 14, 15
 X_HELD, X_HEALTH_OMEGA, X_HEALTH_IMU, X_GNSS, X_VSPEED = 17, 18, 22, 25, 26
 N_X = 27
-X_CHANNELS: tuple[str, ...] = (
-    "t", *(f"omega_{c}" for c in CORNER_KEYS), *(f"torque_{c}" for c in CORNER_KEYS), "ax",
-    "ay", "az", "yaw_rate", "roll_rate", "pitch_rate", "delta_fl", "delta_fr")
-"""The log channels of X's first columns, in order (then: an input was held (1/0), the
-wheel-speed health (4) and the IMU health (3), 1.0 healthy, ``gnss_speed``, NaN between
-fixes, and ``vehicle_speed``). A channel the :class:`Sensors` say is not measured is not
-read."""
+# X's columns: t, omega_fl … omega_rr, torque_fl … torque_rr, ax, ay, az, yaw_rate,
+# roll_rate, pitch_rate, delta_fl, delta_fr (the log's channels), then whether an input was
+# held (1/0), the wheel-speed health (4) and the IMU health (3) (1.0 healthy), gnss_speed (NaN
+# between fixes) and vehicle_speed. A channel the Sensors say is not measured is not read.
 
 # --- the output row, in the kernel's order (Params.col places each in Y) -------------------
 _PER_CORNER = ("vx", "vy", "vxt", "vyt", "slip_ratio", "slip_angle", "fx", "fy", "fz", "mu_x",
@@ -768,11 +765,6 @@ def _corner_trees(pipe: Pipeline) -> tuple[CornerParams, CornerState]:
     return corner.kernel_params, corner.state
 
 
-def covers(pipe: Pipeline) -> bool:
-    """Whether :func:`pipeline_rows` composes ``pipe``'s configuration: every registered one."""
-    return pipe is not None
-
-
 @structref.register
 class _StepperType(types.StructRef):
     def preprocess_fields(self, fields: Any) -> Any:
@@ -808,7 +800,7 @@ def columns(names: tuple[str, ...]) -> np.ndarray:
 def build(pipe: Pipeline, names: tuple[str, ...], sensors: Sensors) -> tuple[Params, State]:
     """The parameter and state trees of ``pipe`` as it is now (its state arrays shared, not
     copied) for a log with ``sensors``, writing the quantities of :data:`ROW_NAMES` to Y's
-    rows in the order of ``names``. Only for a configuration :func:`covers` accepts."""
+    rows in the order of ``names``."""
     cfg = pipe.config
     fe = pipe.force
     veh = pipe.vehicle

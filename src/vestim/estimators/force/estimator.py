@@ -52,6 +52,7 @@ from __future__ import annotations
 import math
 from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 import pandas as pd
@@ -257,6 +258,41 @@ def check_speeds(present: set[str] | Mapping[str, float], what: str) -> bool:
             f"the {what} has no speed channel: give the four wheel speeds omega_fl … omega_rr "
             "(rad/s), or gnss_speed (sparse) or vehicle_speed (dense CAN vehicle speed), m/s")
     return False
+
+
+def sample_channels(sample: Mapping[str, Any]) -> tuple[bool, bool, str]:
+    """What one sample (a live feed's mapping of channel names) holds: whether it has the
+    four wheel torques, the four wheel speeds, and its steering channel (``delta_fl`` for
+    both front road-wheel angles, ``delta`` or ``steering_wheel_angle``).
+
+    Raises:
+        LogFormatError: a required channel or the steering is missing; some wheel speeds or
+            torques but not all four; no speed channel at all.
+    """
+    missing = [c for c in REQUIRED if c not in sample]
+    if missing:
+        raise LogFormatError(f"the force estimators need channel(s) {', '.join(missing)} "
+                             "in every sample")
+    torques = check_torques(sample, "sample")
+    wheels = check_speeds(sample, "sample")
+    steering = next((k for k in ("delta_fl", "delta", "steering_wheel_angle") if k in sample
+                     and (k != "delta_fl" or "delta_fr" in sample)), None)
+    if steering is None:
+        raise LogFormatError("no steering channel: give delta_fl and delta_fr, delta, or "
+                             "steering_wheel_angle")
+    return torques, wheels, steering
+
+
+def front_angles(sample: Mapping[str, Any], steering: str,
+                 steering_ratio: float) -> tuple[float, float]:
+    """The front road-wheel angles (left, right), rad, of a sample whose steering channel is
+    ``steering`` (:func:`sample_channels`); a steering-wheel angle over the ratio."""
+    if steering == "delta_fl":
+        return float(sample["delta_fl"]), float(sample["delta_fr"])
+    d = float(sample[steering])
+    if steering == "steering_wheel_angle":
+        d = d / steering_ratio
+    return d, d
 
 
 def _column(log: pd.DataFrame, name: str, default: float) -> np.ndarray:
@@ -688,22 +724,8 @@ class ForceEstimator:
         return {k: float(v[0]) for k, v in force_columns(u.t, self.advance(u)).items()}
 
     def _inputs_from_sample(self, sample: Mapping[str, float]) -> Inputs:
-        missing = [c for c in REQUIRED if c not in sample]
-        if missing:
-            raise LogFormatError(f"the force estimators need channel(s) {', '.join(missing)} "
-                                 "in every sample")
-        has_torque = check_torques(sample, "sample")
-        has_omega = check_speeds(sample, "sample")
-        if "delta_fl" in sample and "delta_fr" in sample:
-            front = (sample["delta_fl"], sample["delta_fr"])
-        elif "delta" in sample:
-            front = (sample["delta"], sample["delta"])
-        elif "steering_wheel_angle" in sample:
-            d = sample["steering_wheel_angle"] / self.vehicle.body.steering_ratio
-            front = (d, d)
-        else:
-            raise LogFormatError("no steering channel: give delta_fl and delta_fr, delta, or "
-                                 "steering_wheel_angle")
+        has_torque, has_omega, steering = sample_channels(sample)
+        front = front_angles(sample, steering, self.vehicle.body.steering_ratio)
 
         def one(name: str, default: float) -> np.ndarray:
             return np.array([float(sample.get(name, default))])

@@ -271,7 +271,6 @@ class CornerVelocityEstimator:
         self.vehicle = vehicle
         self.method = method
         self.params: KFParams | LPVParams = params
-        self._radius = vehicle.body.wheel_radius
         self.kernel_params = corner_params(vehicle, method, params)
         """The kernels' parameter tree (:class:`~.corner_common.CornerParams`)."""
         self.reset()
