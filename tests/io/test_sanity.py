@@ -390,3 +390,22 @@ def test_vehicle_magnitudes_property(radius: float, mass: float) -> None:
     data["vehicle"]["mass"] = mass * 1000
     with pytest.raises(VehicleFileError, match="grams"):
         vehicle_from_dict(data)
+
+
+CAMPAIGN = DATA.parent / "data_campaign"
+
+
+@pytest.mark.skipif(not (CAMPAIGN / "s1_001_sine_steer.parquet").is_file(),
+                    reason=f"campaign log not at {CAMPAIGN}")
+def test_a_steering_chirp_is_not_a_unit_error() -> None:
+    """Campaign s1_001: a 1 Hz steering chirp at 34 m/s with a 10 Hz gnss_speed in m/s. There
+    ay = v̇_y + v·r reads 0.22 × v·r over its turning bins, inside a km/h channel's band
+    (0.20–0.45), and no bin is a steady turn. The log is valid: a warning naming ay and
+    the speed channel, no error. (The same log with gnss_speed in km/h reads 0.088 with its
+    bins' signs 73 % agreed: no lateral evidence either way, and none is claimed.)"""
+    df = pd.read_parquet(CAMPAIGN / "s1_001_sine_steer.parquet")
+    veh = load_vehicle(CAMPAIGN / "s1_001_sine_steer.toml")
+    found = find_problems(df, veh)
+    assert [(f.severity, f.channel) for f in found] == [("warning", "ay")]
+    assert 0.20 <= found[0].evidence <= 0.25 and "no steady turn" in found[0].message
+    assert "gnss_speed" in found[0].message

@@ -54,6 +54,7 @@ from typing import Any, Literal
 
 import numpy as np
 import pandas as pd
+from scipy.ndimage import uniform_filter1d
 
 from vestim.constants import CORNERS, G
 from vestim.errors import LogFormatError
@@ -98,6 +99,13 @@ V_MIN_YAW = 3.0
 AY_MIN = 1.0
 """m/s²; least |v·r| of a bin for the lateral relation: the accelerometer's bias (≤ 0.1
 m/s²) and bank angle are then at most 10 % of it."""
+STEADY_YAW = 0.25
+"""Largest range of r over a bin and its neighbours (1.5 s), as a share of the bin's |r|,
+for a bin to count as a quasi-steady turn. ay = v̇_y + v·r, and v·r stands for
+ay only where v̇_y is small: a 1 Hz steering chirp at 34 m/s (campaign s1_001) reads
+ay/(v·r) = 0.22 over all its turning bins, in the band of a km/h speed channel, with no
+steady bin at all. The unit errors (ay in g, a speed in km/h) are therefore judged on the
+steady bins only; transient bins alone give a warning."""
 YAW_MIN = 0.05
 """rad/s; least |r| of a bin for the wheel-speed difference (0.05 rad/s gives 0.08 m/s of
 speed difference across a 1.6 m track, 10× the difference the wheel-speed noise leaves in a
@@ -343,7 +351,8 @@ def _run_checks(df: pd.DataFrame, vehicle: Vehicle) -> tuple[list[Finding], list
         torque_ran = _torque(s, out)
     else:
         n_before = len(out)
-        ay_in_g = _lateral_scale(s, lat, lon, out)
+        steady = _ratio_check(s.lat_x, s.ay, s.steady_sel)
+        ay_in_g = _lateral_scale(s, lat, steady, lon, out)
         speed_kmh = any(f.check == "speed" for f in out[n_before:])
         roll = _roll(s, ay_in_g, out)
         _signs(s, lat, yaw, steer, roll, out)
@@ -517,10 +526,30 @@ class _Signals:
             self.yaw_y = np.full(len(cnt), np.nan)
         self.lat_x = self.v * self.r
         self.lat_sel = self.clean & (self.v >= V_MIN) & (np.abs(self.lat_x) >= AY_MIN)
+        self.steady_sel = self.lat_sel & self._steady(_f(df, "yaw_rate"))
         self.yaw_sel = (self.clean & (self.v >= V_MIN_YAW) & (np.abs(self.r) >= YAW_MIN)
                         & (np.abs(self.lat_x) <= AY_MAX_YAW) & np.isfinite(self.yaw_y))
         self.steer_x = self.v * self.delta / b.wheelbase
         self.steer_sel = self.clean & (self.v >= V_MIN) & (np.abs(self.steer_x) >= STEER_MIN)
+
+    def _steady(self, r: np.ndarray) -> np.ndarray:
+        """Bins where r stays within STEADY_YAW·|r| over the bin and its two neighbours
+        (1.5 s): the range of r's 0.1 s means (gyro noise averaged out), not of the bin
+        means, which a 1 Hz steer aliases."""
+        n = len(self._cnt)
+        dt = float(np.median(np.diff(self.t))) if len(self.t) > 1 else 0.0
+        if dt > 0.0 and np.isfinite(dt):
+            r = uniform_filter1d(r, max(1, round(0.1 / dt)), mode="nearest")
+        lo, hi = np.full(n, np.inf), np.full(n, -np.inf)
+        fin = np.isfinite(r)
+        np.minimum.at(lo, self._idx[fin], r[fin])
+        np.maximum.at(hi, self._idx[fin], r[fin])
+        pad_lo = np.concatenate(([np.inf], lo, [np.inf]))
+        pad_hi = np.concatenate(([-np.inf], hi, [-np.inf]))
+        wlo = np.minimum(np.minimum(pad_lo[:-2], pad_lo[1:-1]), pad_lo[2:])
+        whi = np.maximum(np.maximum(pad_hi[:-2], pad_hi[1:-1]), pad_hi[2:])
+        with np.errstate(invalid="ignore"):
+            return np.asarray((whi - wlo) <= STEADY_YAW * np.abs(self.r))
 
     def bin(self, x: np.ndarray) -> np.ndarray:
         with np.errstate(invalid="ignore", divide="ignore"):
@@ -702,10 +731,27 @@ def _yaw_scale(s: _Signals, lat: _Ratio | None, yaw: _Ratio | None,
     return False
 
 
-def _lateral_scale(s: _Signals, lat: _Ratio | None, lon: float | None,
-                   out: list[Finding]) -> bool:
-    """ax/ay in g. Returns whether ay was found to be in g."""
-    ay_g = lat is not None and LAT_G[0] <= abs(lat.value) <= LAT_G[1] and lat.agree >= MAJORITY
+def _unit_band(q: _Ratio | None, band: tuple[float, float]) -> bool:
+    return q is not None and band[0] <= abs(q.value) <= band[1] and q.agree >= MAJORITY
+
+
+def _lateral_scale(s: _Signals, lat: _Ratio | None, steady: _Ratio | None,
+                   lon: float | None, out: list[Finding]) -> bool:
+    """ax/ay in g, or a speed channel in km/h. ``lat`` is ay/(v·r) over every turning bin,
+    ``steady`` over the quasi-steady ones (STEADY_YAW): only they can prove a unit error.
+    Returns whether ay was found to be in g."""
+    kmh_band = KMH_LAT if not s.has_wheels else (math.inf, math.inf)
+    if steady is None and (_unit_band(lat, LAT_G) or _unit_band(lat, kmh_band)):
+        assert lat is not None
+        out.append(_warn("ay", f"in turns ay is {lat.value:.3g} × v·r (speed {s.speed_name} times "
+                         "yaw_rate), expected about 1, but the log has no steady turn to tell "
+                         f"a unit error (ay in g, {s.speed_name} in km/h) from transient "
+                         "steering, where ay = v̇_y + v·r: check the units of ay and the speed",
+                         lat.value, "lateral"))
+        lat = None
+    elif steady is not None:
+        lat = steady
+    ay_g = _unit_band(lat, LAT_G)
     ax_g = lon is not None and 0 < lon < (LON_G if s.has_wheels else LON_G_SPEED)
     if ax_g and ay_g:
         assert lat is not None and lon is not None
@@ -731,8 +777,8 @@ def _lateral_scale(s: _Signals, lat: _Ratio | None, lon: float | None,
                         f"{abs(lat.value):.3f} × v·r (speed {s.speed_name} times yaw_rate; about 1 in "
                         f"m/s², {1 / G:.3f} in g); multiply ay by {G}{ax_note}", lat.value,
                         "lateral"))
-    elif (lat is not None and lat.agree >= MAJORITY and not s.has_wheels
-          and KMH_LAT[0] <= abs(lat.value) <= KMH_LAT[1]):
+    elif _unit_band(lat, kmh_band):
+        assert lat is not None
         name = s.speed_name
         out.append(_err(name, f"column '{name}' looks like km/h, not m/s: in turns ay is "
                         f"{abs(lat.value):.3f} × v·r (speed {name} times yaw_rate; about 1 in "
