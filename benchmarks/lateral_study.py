@@ -18,6 +18,7 @@ import tomllib
 import warnings
 from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pandas as pd
@@ -63,17 +64,21 @@ def _real_score(truth: pd.DataFrame, est: pd.DataFrame) -> dict[str, dict[str, f
 
 
 def _config(sets: list[str]) -> object:
-    """A PipelineConfig with ``table.field=value`` overrides (a study's variants)."""
+    """A PipelineConfig with ``table.field=value`` overrides (a study's variants; nested
+    tables as ``force.load_filter.kind=-1``)."""
     from dataclasses import replace
 
     from vestim.pipeline import PipelineConfig
 
+    def put(obj: Any, path: list[str], value: str) -> Any:
+        old = getattr(obj, path[0])
+        new = type(old)(value) if len(path) == 1 else put(old, path[1:], value)
+        return replace(obj, **{path[0]: new})
+
     cfg = PipelineConfig()
     for item in sets:
         key, value = item.split("=")
-        table, name = key.split(".")
-        sub = getattr(cfg, table)
-        cfg = replace(cfg, **{table: replace(sub, **{name: type(getattr(sub, name))(value)})})
+        cfg = put(cfg, key.split("."), value)
     return cfg
 
 

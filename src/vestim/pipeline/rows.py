@@ -35,6 +35,7 @@ from vestim.estimators import registry
 from vestim.estimators.force.estimator import (
     AX_TAU,
     AX_TAU_SPARSE,
+    load_specific_force,
     normalised,
     speed_derivative,
     speed_hold,
@@ -90,6 +91,7 @@ from vestim.estimators.velocity.reference import (
     copy_reference_state,
     gnss_calibration,
 )
+from vestim.filters.lowpass import LowpassParams
 from vestim.models.chassis import (
     ChassisKernelParams,
     chassis_params,
@@ -214,6 +216,8 @@ class ForceParams(NamedTuple):
     yw: np.ndarray  # corner positions left of the CG, m
     lateral: LateralKernelParams
     chassis: ChassisKernelParams  # the wheel torques of a log without them
+    load_filter: LowpassParams  # the specific force's low-pass for the force stage
+    load_filter_on: bool
 
 
 class ForceState(NamedTuple):
@@ -226,6 +230,7 @@ class ForceState(NamedTuple):
     inertia: LongitudinalState  # the longitudinal method on zero torque: the chassis
     # torques' ω̇ (logs without torques)
     hold_state: np.ndarray  # the speed between gnss_speed fixes (logs without wheel speeds)
+    load_filter: np.ndarray  # load_specific_force's (4, N_LOWPASS)
 
 
 class VelocityParams(NamedTuple):
@@ -411,7 +416,9 @@ def _block(P: Params, S: State, x: np.ndarray, Y: np.ndarray, k0: int) -> None:
     fxa, fya, fza = road_specific_force(ax, ay, az, g_roll, g_pitch)
     if not sensors.ax:  # a speed's derivative is already the road-plane acceleration
         fxa = ax.copy()
-    fz = normal_loads_kernel(fxa, fya, fza, roll, pitch, p_rate, q_rate, roll_acc, pitch_acc,
+    lxa, lya, lza, noise = load_specific_force(fp.load_filter, fp.load_filter_on, fs.load_filter,
+                                               t, fxa, fya, fza, r)
+    fz = normal_loads_kernel(lxa, lya, lza, roll, pitch, p_rate, q_rate, roll_acc, pitch_acc,
                              fp.normal, fp.dynamic)
     if not sensors.torque:
         torque = _chassis_torques(fp, fs, t, omega, fxa, fya, delta, fz)
@@ -428,8 +435,8 @@ def _block(P: Params, S: State, x: np.ndarray, Y: np.ndarray, k0: int) -> None:
     weights = split_weights(fz, omega, torque, r, radius, yw, fp.load_exponent, fp.slip_scale)
     fy = np.empty((m, 4))
     sig_fy = np.empty((m, 4))
-    lateral_kernel(fp.lateral, fs.lateral, t, fx, delta, weights, fxa, fya, r, drag, fz, speed,
-                   fy, sig_fy)
+    lateral_kernel(fp.lateral, fs.lateral, t, fx, delta, weights, fxa, fya, r, noise, drag, fz,
+                   speed, fy, sig_fy)
     if not sensors.omega:  # per-corner F_x needs the wheels' own speeds
         fx[:] = np.nan
         sig_fx[:] = np.nan
@@ -811,10 +818,11 @@ def build(pipe: Pipeline, names: tuple[str, ...], sensors: Sensors) -> tuple[Par
         float(b.wheel_radius), float(fe.rolling_resistance * b.wheel_radius),
         float(fe._drag_coef), float(lp.load_exponent), float(lp.slip_scale),
         normal_load_params(veh), fe.config.normal == "dynamic", fe._att_prm, lon.params,
-        fe._xw, fe._yw, fe.lateral_params, chassis_params(veh))
+        fe._xw, fe._yw, fe.lateral_params, chassis_params(veh), fe.load_filter_params,
+        fe.config.load_filter.enabled)
     inertia = fe._lon_inertia  # the same method and parameters as lon, its own state
     force_s = ForceState(fe._att, lon.state, fe.lateral_state, fe._ax_state, inertia.state,
-                         fe._hold_state)
+                         fe._hold_state, fe.load_filter_state)
     corner_p, corner_s = _corner_trees(pipe)
     fp = cfg.fusion_params
     ap = fp.adaptive

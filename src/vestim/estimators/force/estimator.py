@@ -63,12 +63,18 @@ from vestim.errors import LogFormatError
 from vestim.estimators.force import lateral as lat
 from vestim.estimators.force import longitudinal as lon
 from vestim.estimators.force import normal as nrm
+from vestim.filters.lowpass import (
+    N_LOWPASS,
+    LowpassParams,
+    noise_adaptive_lowpass,
+    noise_variance,
+)
 from vestim.filters.ukf import ukf_weights
 from vestim.io.log import road_wheel_angles
 from vestim.io.vehicle import Vehicle
 from vestim.models import chassis
 from vestim.models.kinematics import level_road_az, road_specific_force
-from vestim.params import check_ranges
+from vestim.params import check_ranges, pack
 
 TORQUES: tuple[str, ...] = tuple(f"torque_{c}" for c in CORNERS)
 ACCELEROMETERS: tuple[str, ...] = ("specific_force", "gravity_free")
@@ -93,6 +99,39 @@ without ax, 0.5 m/s² raised the v_x RMSE of the brake logs x03/x07 from 0.085/0
 AX_TAU_SPARSE = (0.0, 0.5)
 """The same for ``gnss_speed`` fixes (each fix differenced with the previous one, then
 low-passed over 0.5 s: 0.05 m/s fix noise at 10 Hz gives ≈ 0.2 m/s²)."""
+
+
+@dataclass(frozen=True)
+class LoadFilterConfig:
+    """The low-pass of the specific force that the force stage uses (normal loads, chassis
+    torques, lateral-force UKF; :mod:`vestim.filters.lowpass`): its bandwidth follows the
+    log's own accelerometer noise, measured above ``f_noise``.
+
+    Attributes:
+        f_ref: bandwidth for ``sigma_ref`` of noise at 200 Hz, Hz.
+        f_max: the most bandwidth, Hz.
+        f_min: the least bandwidth, Hz.
+        sigma_ref: noise per sample at which ``f_max`` holds, m/s².
+        f_noise: edge above which the accelerometer signal is taken to be noise, Hz.
+        tau_noise: averaging time of the noise's mean square, s.
+        enabled: False passes the specific force through unfiltered and leaves the lateral
+            UKF's measurement noise at its configured values.
+    """
+
+    f_ref: float = 12.0
+    f_max: float = 20.0
+    f_min: float = 1.0
+    sigma_ref: float = 0.1
+    f_noise: float = 8.0
+    tau_noise: float = 1.0
+    enabled: bool = True
+
+    def __post_init__(self) -> None:
+        check_ranges(self, "force_params.load_filter",
+                     positive=("f_ref", "f_max", "f_min", "sigma_ref", "f_noise", "tau_noise"))
+        if self.f_min > self.f_max:
+            raise ValueError(f"force_params.load_filter f_min = {self.f_min} Hz is above f_max "
+                             f"= {self.f_max} Hz: give f_min ≤ f_max")
 
 
 @dataclass(frozen=True)
@@ -137,6 +176,7 @@ class ForceConfig:
     pid: lon.PIDParams = field(default_factory=lon.PIDParams)
     uio: lon.UIOParams = field(default_factory=lon.UIOParams)
     lateral: lat.LateralParams = field(default_factory=lat.LateralParams)
+    load_filter: LoadFilterConfig = field(default_factory=LoadFilterConfig)
     roll_tau: float = 2.0
     rate_filter_hz: float = 8.0
     roll_slide: float = 0.03
@@ -371,6 +411,40 @@ def wheel_reference_speed(t: np.ndarray, omega: np.ndarray, yaw_rate: np.ndarray
 
 
 @njit(cache=True, error_model="numpy")
+def load_specific_force(prm: LowpassParams, enabled: bool, state: np.ndarray, t: np.ndarray,
+                        f_x: np.ndarray,
+                        f_y: np.ndarray, f_z: np.ndarray, r: np.ndarray
+                        ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """The road-plane specific force (m/s²) for the load balances, and the noise of the
+    measurements.
+
+    Each component goes through :func:`~vestim.filters.lowpass.noise_adaptive_lowpass`
+    (state rows 0–2 of ``state`` (4, N_LOWPASS)), or is copied where not ``enabled``: the
+    normal loads take these (a body-mounted IMU's 10–30 Hz
+    vibration of up to 4 m/s² is no tire load; the campaign's F_z was 13 of 48 times worse
+    than the static loads with it). The fourth array (n, 3) holds the measured noise
+    variance per sample of f_x, f_y ((m/s²)²) and of the yaw gyro ((rad/s)², row 3 of
+    ``state``) for the lateral UKF, which takes the unfiltered force (a delay there costs
+    F_y in proportion to the steering frequency: 1.3–2.3 points on the crossplant sine
+    steers at 8 Hz) and weighs its noise with these (0 where the filter is off: the
+    configured values alone). The chassis torques (a torque step's m a_x: our simulator's
+    AWD braking without torques lost 1.5 points of F_x to the delay) and the velocity
+    filters take the unfiltered force too."""
+    n = t.shape[0]
+    out = (f_x.copy(), f_y.copy(), f_z.copy())
+    var = np.zeros((n, 3))
+    if enabled:
+        v = np.empty(n)
+        for j, f in enumerate((f_x, f_y, f_z)):
+            noise_adaptive_lowpass(prm, state[j], t, f, out[j], v)
+            if j < 2:
+                var[:, j] = v
+        noise_variance(prm, state[3], t, r, v)
+        var[:, 2] = v
+    return out[0], out[1], out[2], var
+
+
+@njit(cache=True, error_model="numpy")
 def speed_derivative(t: np.ndarray, v: np.ndarray, tau_v: float, tau_a: float,
                      state: np.ndarray, out: np.ndarray) -> None:
     """Causal derivative of a speed v (n,) m/s into ``out`` (n,) m/s²: v low-passed (τ_v),
@@ -535,6 +609,8 @@ class ForceEstimator:
                                             b.wheel_radius, b.drivetrain,
                                             "suspension" in vehicle.given, roll_known)
         self.set_accelerometer(self.config.accelerometer)
+        self.load_filter_params = pack(LowpassParams, self.config.load_filter)
+        """The force stage's specific-force low-pass (:func:`load_specific_force`)."""
         self._xw = np.array([b.lf, b.lf, -b.lr, -b.lr])
         self._yw = 0.5 * np.array([b.track_f, -b.track_f, b.track_r, -b.track_r])
         wm, wc, tau = ukf_weights(4)
@@ -562,6 +638,7 @@ class ForceEstimator:
         self._att = np.zeros(nrm.N_ATTITUDE)
         self.lateral_state = lat.new_lateral_state()
         self._ax_state = np.zeros(4)  # speed_derivative's state (logs without ax)
+        self.load_filter_state = np.zeros((4, N_LOWPASS))  # load_specific_force's
         self._hold_state = np.zeros(3)  # speed_hold's state (gnss_speed without wheel speeds)
         self._seen: dict[str, set[str]] = {}
 
@@ -643,7 +720,10 @@ class ForceEstimator:
             # pitch would add a g sin θ that a body-fixed accelerometer reads and it does not
             # (braking at 4 m/s², ~1° of pitch: 0.2 m/s², v_x 0.9 m/s high on crossplant x10).
             f_x = u.ax.copy()
-        fz = nrm.normal_loads(f_x, f_y, f_z, roll, pitch, u.roll_rate, u.pitch_rate, roll_acc,
+        l_x, l_y, l_z, noise = load_specific_force(
+            self.load_filter_params, cfg.load_filter.enabled, self.load_filter_state, u.t, f_x,
+            f_y, f_z, u.yaw_rate)
+        fz = nrm.normal_loads(l_x, l_y, l_z, roll, pitch, u.roll_rate, u.pitch_rate, roll_acc,
                               pitch_acc, self.vehicle, cfg.normal)
         if not u.torque_measured:
             # Equivalent net wheel torques from the chassis equation (models.chassis eq. (2)),
@@ -674,7 +754,7 @@ class ForceEstimator:
                                     lp.load_exponent, lp.slip_scale)
         speed = b.wheel_radius * np.median(u.omega, axis=1)
         lat.lateral_kernel(self.lateral_params, self.lateral_state, u.t, fx, u.delta, weights,
-                           f_x, f_y, u.yaw_rate, drag, fz, speed, fy, sig_fy)
+                           f_x, f_y, u.yaw_rate, noise, drag, fz, speed, fy, sig_fy)
         if not u.omega_measured:  # per-corner F_x needs the wheels' own speeds
             fx = np.full_like(fx, np.nan)
             sig_fx = np.full_like(sig_fx, np.nan)

@@ -226,14 +226,17 @@ def new_lateral_state() -> LateralState:
 @njit(**_JIT)
 def lateral_kernel(p: LateralKernelParams, s: LateralState, t: np.ndarray, fx: np.ndarray,
                    delta: np.ndarray, weights: np.ndarray, f_x: np.ndarray, f_y: np.ndarray,
-                   yaw_rate: np.ndarray, drag: np.ndarray, fz: np.ndarray, speed: np.ndarray,
-                   fy_out: np.ndarray, sig_out: np.ndarray) -> None:
+                   yaw_rate: np.ndarray, noise: np.ndarray, drag: np.ndarray, fz: np.ndarray,
+                   speed: np.ndarray, fy_out: np.ndarray, sig_out: np.ndarray) -> None:
     """Advance the lateral-force UKF over a chunk (in place on ``s``: x (4,), P (4, 4), state).
 
     Inputs per sample: fx (n, 4) tire-frame longitudinal forces, delta (n, 4)
     road-wheel angles (rear 0), weights (n, 4) lateral-capacity weights of
     :func:`split_weights`, f_x, f_y road-frame
-    specific force (m/s²), yaw_rate (rad/s), drag (N), fz (n, 4) normal loads (N), speed
+    specific force (m/s²), yaw_rate (rad/s), noise (n, 3) the measured noise variances of
+    f_x, f_y ((m/s²)²) and the yaw rate ((rad/s)²), which raise the measurement noise above
+    ``r_diag`` where they exceed it (the log's own sensors, e.g. a vibrating IMU or a gyro
+    noisier than the configured one), drag (N), fz (n, 4) normal loads (N), speed
     (n,) a wheel-speed reference of v_x (m/s). ``q`` from :func:`lateral_q`.
     ``state`` (:data:`N_STATE`,) = [t_prev, started, F_x (4) and δ (4) of the previous
     sample, held over the interval, ν̄ of the lateral balance, ν̄ of the yaw rate, factor
@@ -331,8 +334,10 @@ def lateral_kernel(p: LateralKernelParams, s: LateralState, t: np.ndarray, fx: n
                     for j in range(N_X):
                         acc += H[r, j] * Pxy[j, c2]
                     Pyy[r, c2] = acc
-            for j in range(N_Y):
-                Pyy[j, j] += r_diag[j]
+            Pyy[0, 0] += max(r_diag[0], mass * mass * noise[k, 0])
+            Pyy[1, 1] += max(r_diag[1], mass * mass * noise[k, 1])
+            Pyy[2, 2] += max(r_diag[2], noise[k, 2])
+            Pyy[3, 3] += r_diag[3]
             y[0] = mass * f_x[k] + drag[k] - ym[0]
             y[1] = mass * (f_y[k] - state[13]) - ym[1]
             y[2] = yaw_rate[k] - ym[2]
