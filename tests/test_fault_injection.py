@@ -36,21 +36,20 @@ def _needs(name: str) -> list[pytest.MarkDecorator]:
     return [pytest.mark.skip(reason=f"crossplant data not at {ft.DATA}")]
 
 
-# Misses measured today: (case, log) -> the figure. The IMU health columns (health_ax, ...)
-# are not in the Pipeline's output yet (integration pending), so those faults are never
-# flagged; the bias also pushes v_x beyond the bound where the log accelerates or brakes.
-# The IMU bias test runs only while the car drives steadily (docs/faults.md): these steps
-# start inside a manoeuvre (or within the simulator's wheel-derivative noise) and are not
-# flagged.
+# Misses measured today: (case, log) -> the figure. The IMU bias test runs only while the
+# car drives steadily (docs/faults.md): these steps start inside a manoeuvre (or within the
+# simulator's wheel-derivative noise) and are not flagged by it; the test of the estimate
+# itself (bit 128) sees them only once they make v_x wrong by more than 0.2 m/s + 3 % of
+# v_x, which none of them does (on x07 the a_x step during the braked turn pushes v_x
+# 0.287 m/s off, beyond the clean bound but within the test's 0.5 m/s at 10 m/s; all four
+# wheels are braked then, so no wheel says otherwise).
 MISSES: dict[tuple[str, str], str] = {
     **{("bias_ax", n): "never flagged" for n in ft.LOGS},
-    **{("bias_ay", n): "never flagged" for n in ft.LOGS if n != "sim:accel_brake"},
+    **{(c, n): "never flagged" for c in ("bias_ay", "bias_r") for n in ft.LOGS
+       if n != "sim:accel_brake"},
 }
-MISSES[("bias_ax", "x05_sine_steer_dry_rwd")] += "; max v_x error 0.184 m/s > bound 0.144"
-MISSES[("bias_ax", "x07_brake_turn_dry_awd")] += "; max v_x error 0.827 m/s > bound 0.266"
-MISSES[("bias_ax", "sim:accel_brake")] += "; max v_x error 0.608 m/s > bound 0.274"
-MISSES[("bias_ax", "sim:dlc_snow")] += "; max v_x error 0.297 m/s > bound 0.266"
-MISSES[("bias_ay", "x10_mixed_drive_fwd")] += "; max v_x error 0.286 m/s > bound 0.256"
+MISSES[("bias_ax", "x07_brake_turn_dry_awd")] += ("; max v_x error 0.287 m/s > bound 0.143, "
+                                                  "1.78 s valid while wrong")
 
 
 def _cases() -> list[object]:
@@ -77,6 +76,8 @@ def test_fault_is_flagged_bounded_and_recovers(case: str, name: str) -> None:
     assert g.err <= g.bound, f"max v_x error {g.err:.3f} m/s > bound {g.bound:.3f}"
     # recovered within 2 s of the fault's end (nan: the fault lasts to the end of the log)
     assert math.isnan(g.recovery) or g.recovery <= ft.RECOVER_S, f"recovered after {g.recovery} s"
+    # issue 30: no row valid while v_x is beyond the bound
+    assert g.valid_wrong == 0.0, f"{g.valid_wrong} s valid while wrong"
 
 
 @pytest.mark.parametrize("name", [pytest.param(n, marks=_needs(n)) for n in ft.LOGS])

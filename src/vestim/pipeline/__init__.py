@@ -79,7 +79,7 @@ from vestim.estimators.uncertainty import new_state as new_uncertainty_state
 from vestim.estimators.uncertainty import (
     uncertainty_params,
 )
-from vestim.estimators.validity import VY_UNVERIFIED, validity_params
+from vestim.estimators.validity import VY_UNVERIFIED, new_consistency_state, validity_params
 from vestim.estimators.velocity.corner import CornerVelocityEstimator
 from vestim.estimators.velocity.kinematic import KinematicIntegrator
 from vestim.estimators.velocity.lpv_observer import LPVParams
@@ -180,6 +180,8 @@ class Pipeline:
         # the last sample whose every value was finite, and its time (step()'s hold)
         self._last_good: tuple[float, Mapping[str, float]] = (-math.inf, {})
         self._t_start = np.array([np.nan])  # first sample time (validity flags' convergence)
+        self._consistency_state = new_consistency_state()  # validity bit 128's test
+        self._corner_seeded = np.zeros(1)  # the corner observers took the reference's v (1.0)
         self._held_now = False  # step() held a dropped input in this sample
         self.gaps: list[tuple[float, float]] = []  # time gaps (s) the filters restarted after
         self.vy_unverified_rows = 0
@@ -223,6 +225,8 @@ class Pipeline:
         self._imu_state = new_imu_state()
         self._unc_state = new_uncertainty_state()
         self._t_start = np.array([np.nan])  # first sample time (validity flags' convergence)
+        self._consistency_state = new_consistency_state()  # validity bit 128's test
+        self._corner_seeded = np.zeros(1)  # the corner observers took the reference's v (1.0)
         self._held_now = False  # step() held a dropped input in this sample
         self._t_gnss = np.array([np.nan])
         self._fused_is_reference = True

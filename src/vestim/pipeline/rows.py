@@ -70,8 +70,13 @@ from vestim.estimators.uncertainty import (
     uncertainty_step,
 )
 from vestim.estimators.validity import GROUPS as VALIDITY_GROUPS
-from vestim.estimators.validity import ValidityKernelParams, validity_step
-from vestim.estimators.velocity.corner import CornerVelocityEstimator, corner_rows
+from vestim.estimators.validity import (
+    ConsistencyState,
+    ValidityKernelParams,
+    consistency_step,
+    validity_step,
+)
+from vestim.estimators.velocity.corner import CornerVelocityEstimator, corner_rows, seed_corners
 from vestim.estimators.velocity.corner_common import (
     CornerInputs,
     CornerOutputs,
@@ -274,6 +279,7 @@ class VelocityState(NamedTuple):
     prev: np.ndarray
     corner: CornerState
     kinematic: np.ndarray  # the kinematic integrator's state
+    seeded: np.ndarray  # (1,) 1.0 once the corner observers took the reference's velocity
 
 
 class PostParams(NamedTuple):
@@ -286,11 +292,12 @@ class PostParams(NamedTuple):
 
 class PostState(NamedTuple):
     """Friction and uncertainty states; ``t_start`` (1,) the first sample's time, s (NaN
-    before it)."""
+    before it); the consistency test's state (validity bit 128)."""
 
     friction: FrictionState
     uncertainty: UncertaintyState
     t_start: np.ndarray
+    consistency: ConsistencyState
 
 
 class Params(NamedTuple):
@@ -318,6 +325,17 @@ FIXED, ADAPTIVE, OPINION = (registry.lookup("fusion", n).code
                             for n in ("axle", "adaptive", "opinion"))
 """The methods' registry codes that :func:`pipeline_rows` dispatches on (``kf``, ``ukf`` and
 ``lpv`` are the other velocity codes: a corner observer fused to the CG)."""
+
+SEED_AT = 0.5
+"""After a (re)start the corner observers (``kf``, ``ukf``, ``lpv``, and ``fused``'s) start
+free rolling (v_r = 0, v̂_xt = R ω): on a spinning or locked wheel that is wrong by the slip
+and their slip-ratio estimate never corrects it (the ice launch x02 after a 2 s gap: 1.45 m/s
+off to the end of the log). At ``SEED_AT`` × ``validity.converge_s`` after it they take the
+reference filter's velocity mapped to each corner (:func:`seed_corners`): the reference
+filter rejects the slipping wheels and has converged by then (its v_x within 0.08 m/s of the
+truth from the first row after every 2 s gap of the crossplant sweep,
+``benchmarks/fault_table.py``), and the observers have the other half of the window to
+settle before the rows are valid again."""
 
 BLOCK = 1024
 """Samples per stage pass of :func:`pipeline_rows`: each stage runs over a block before the
@@ -550,7 +568,8 @@ def _block(P: Params, S: State, x: np.ndarray, Y: np.ndarray, k0: int) -> None:
     _put(Y, col, j + 5, latency, k0)
     _put4(Y, col, _R_CONF, conf, k0)
     _post(P.post, S.post, x, t, ax, v, sig, c_y, bias[:, 3].copy(),
-          Corners(fx, fy, fz, sig_fx, sig_fy, sr, sa, vxt, vyt, delta, omega_v), Y, col, k0)
+          Corners(fx, fy, fz, sig_fx, sig_fy, sr, sa, vxt, vyt, delta, omega_v), radius, Y, col,
+          k0)
 
 
 @njit(**_JIT)
@@ -619,22 +638,38 @@ def _corners_vx(P: Params, S: State, t: np.ndarray, omega: np.ndarray, delta: np
     vyt_in = np.empty((m, 4))
     rotate_kernel(vx_i.reshape(-1), vy_i.reshape(-1), delta.reshape(-1), 1.0,
                   vxt_g.reshape(-1), vyt_in.reshape(-1))
+    vxr_i, vyr_i = transport_kernel(v_ref[:, 0].copy(), vyr, r, xw, yw, 1.0)
+    vxt_r = np.empty((m, 4))
+    vyt_r = np.empty((m, 4))
+    rotate_kernel(vxr_i.reshape(-1), vyr_i.reshape(-1), delta.reshape(-1), 1.0,
+                  vxt_r.reshape(-1), vyt_r.reshape(-1))
     k = CornerOutputs(np.empty((m, 4)), np.zeros((m, 4)), np.empty((m, 4)),
                       np.empty((m, 4), dtype=np.bool_), np.empty((m, 4)), np.empty((m, 4)),
                       np.empty((m, 4)), np.empty((m, 4)), np.empty((m, 4)))
-    corner_rows(cp, cs, CornerInputs(t, omega, mu_x, mu_y, a_xt, a_yt, delta, r,
-                                     np.zeros((m, 4), dtype=np.bool_), vyt_in), k)
+    inp = CornerInputs(t, omega, mu_x, mu_y, a_xt, a_yt, delta, r,
+                       np.zeros((m, 4), dtype=np.bool_), vyt_in)
+    seed = -1  # the row after which the observers take the reference's velocity (SEED_AT)
+    if vs.seeded[0] == 0.0:
+        t0 = S.post.t_start[0] if not np.isnan(S.post.t_start[0]) else t[0]
+        for i in range(m):
+            if t[i] - t0 >= SEED_AT * P.post.validity.converge_s:
+                seed = i
+                break
+    if seed < 0:
+        corner_rows(cp, cs, inp, k)
+    else:
+        corner_rows(cp, cs, _corner_inputs_rows(inp, 0, seed + 1),
+                    _corner_outputs_rows(k, 0, seed + 1))
+        seed_corners(cp, cs, omega[seed], vxt_r[seed])
+        vs.seeded[0] = 1.0
+        corner_rows(cp, cs, _corner_inputs_rows(inp, seed + 1, m),
+                    _corner_outputs_rows(k, seed + 1, m))
     k_vxt, k_vyt, k_high = k.vxt, k.vyt, k.high
     if cp.lpv:  # the KFs leave v_yt at 0; the LPV's is NaN without its lateral observer
         for i in range(m):
             for c in range(4):
                 if np.isnan(k_vyt[i, c]):
                     k_vyt[i, c] = 0.0
-    vxr_i, vyr_i = transport_kernel(v_ref[:, 0].copy(), vyr, r, xw, yw, 1.0)
-    vxt_r = np.empty((m, 4))
-    vyt_r = np.empty((m, 4))
-    rotate_kernel(vxr_i.reshape(-1), vyr_i.reshape(-1), delta.reshape(-1), 1.0,
-                  vxt_r.reshape(-1), vyt_r.reshape(-1))
     slip = np.empty((m, 4))
     slip_ratio_kernel(omega.reshape(-1), vxt_r.reshape(-1), radius, 0.1, slip.reshape(-1))
     vx_b = np.empty((m, 4))
@@ -658,6 +693,20 @@ def _corners_vx(P: Params, S: State, t: np.ndarray, omega: np.ndarray, delta: np
         for c in range(4):
             n_high[i] += 1 if k_high[i, c] else 0
     return vx_f, n_high
+
+
+@njit(**_JIT)
+def _corner_inputs_rows(a: CornerInputs, i: int, j: int) -> CornerInputs:
+    """Rows [i, j) of ``a`` (views)."""
+    return CornerInputs(a.t[i:j], a.omega[i:j], a.mu_x[i:j], a.mu_y[i:j], a.a_xt[i:j],
+                        a.a_yt[i:j], a.delta[i:j], a.yaw_rate[i:j], a.hint[i:j], a.vyt_in[i:j])
+
+
+@njit(**_JIT)
+def _corner_outputs_rows(a: CornerOutputs, i: int, j: int) -> CornerOutputs:
+    """Rows [i, j) of ``a`` (views: the observers write through them)."""
+    return CornerOutputs(a.vxt[i:j], a.vyt[i:j], a.sigma[i:j], a.high[i:j], a.vrx[i:j],
+                         a.zx[i:j], a.zdot[i:j], a.vry[i:j], a.zy[i:j])
 
 
 @njit(**_JIT)
@@ -714,11 +763,12 @@ class Corners(NamedTuple):
 @njit(**_JIT)
 def _post(p: PostParams, st: PostState, x: np.ndarray, t: np.ndarray, ax: np.ndarray,
           v: np.ndarray, sig: np.ndarray, c_y: np.ndarray, vy_unverified: np.ndarray,
-          corners: Corners, Y: np.ndarray, col: np.ndarray, k0: int) -> None:
+          corners: Corners, radius: float, Y: np.ndarray, col: np.ndarray, k0: int) -> None:
     """Friction, validity and uncertainty of a block (their per-sample steps) and its health
     flags, into Y (quantities from :data:`_R_MU` on). ``v``, ``sig`` (m, 2) the filter's
     velocity and σ, m/s; ``vy_unverified`` the time since the reference filter last accepted
-    a v_y pseudo-measurement, s."""
+    a v_y pseudo-measurement, s; ``radius`` the wheel radius, m (the consistency test's
+    R ω)."""
     fx, fy, fz, sig_fx, sig_fy = (corners.fx, corners.fy, corners.fz, corners.sig_fx,
                                   corners.sig_fy)
     sr, sa, vxt, vyt = corners.sr, corners.sa, corners.vxt, corners.vyt
@@ -743,9 +793,11 @@ def _post(p: PostParams, st: PostState, x: np.ndarray, t: np.ndarray, ax: np.nda
                              (_R_MU + 3 * c + 2, ex[c])):
                 if col[j] >= 0:
                     Y[col[j], k] = value
+        consistent = consistency_step(p.validity, st.consistency, t[i], radius, vx, omega[i],
+                                      vxt[i])
         validity_step(p.validity, t[i], st.t_start[0], vx, sr[i], sa[i], delta[i, 0],
-                      delta[i, 1], x[i, X_AY], vy_unverified[i], x[i, X_HELD] != 0.0, valid,
-                      reason)
+                      delta[i, 1], x[i, X_AY], vy_unverified[i], x[i, X_HELD] != 0.0,
+                      consistent, valid, reason)
         for g in range(_N_GROUPS):
             j = _R_MU + 12 + 2 * g
             if col[j] >= 0:
@@ -838,8 +890,10 @@ def build(pipe: Pipeline, names: tuple[str, ...], sensors: Sensors) -> tuple[Par
         float(fp.w_floor), float(fp.band), float(fp.gamma))
     prev = np.array([pipe._prev[0], pipe._prev[1], 1.0 if pipe._fused_is_reference else 0.0])
     velocity_s = VelocityState(pipe._stiff_state, pipe._radius_state, pipe._t_gnss, ref.state,
-                               pipe.fused.state, prev, corner_s, pipe.kinematic._state)
+                               pipe.fused.state, prev, corner_s, pipe.kinematic._state,
+                               pipe._corner_seeded)
     post_p = PostParams(pipe._friction_prm, pipe._validity_prm, pipe._unc_prm)
-    post_s = PostState(pipe._friction_state, pipe._unc_state, pipe._t_start)
+    post_s = PostState(pipe._friction_state, pipe._unc_state, pipe._t_start,
+                       pipe._consistency_state)
     return (Params(sensors, force_p, velocity_p, post_p, columns(names)),
             State(force_s, velocity_s, post_s))

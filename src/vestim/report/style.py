@@ -60,6 +60,7 @@ REASON_COLORS: dict[str, str] = {
     "unobservable": "#8E7CC3",    # violet
     "input faulty": "#6B4226",    # brown
     "v_y unverified": "#FF7F00",  # orange
+    "inconsistent": "#E7298A",    # magenta
 }
 """Colour of a shaded "not valid" band, by the first of its reasons
 (:data:`vestim.estimators.validity.REASONS` names)."""

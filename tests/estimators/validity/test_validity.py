@@ -113,7 +113,7 @@ def test_reason_names_decode_every_bit() -> None:
     assert reason_names(1 + 8 + 64) == ["not converged", "high slip", "v_y unverified"]
     assert reason_names(0.0) == [] and reason_names(float(sum(REASONS))) == list(REASONS.values())
     with pytest.raises(ValueError, match="holds bit"):
-        reason_names(128)
+        reason_names(256)
     with pytest.raises(ValueError, match="not a non-negative whole number"):
         reason_names(1.5)
     with pytest.raises(ValueError, match="not a non-negative whole number"):

@@ -69,6 +69,8 @@ from vestim.estimators.velocity.lpv_observer import (
     gains_004_eq35,
     lpv_kernel,
 )
+from vestim.estimators.velocity.lpv_observer import VRS as LPV_VR
+from vestim.estimators.velocity.lugre_kf import VR as KF_VR
 from vestim.estimators.velocity.lugre_kf import KFParams, lugre_kf_kernel
 from vestim.filters.ukf import ukf_weights
 from vestim.io.vehicle import Vehicle
@@ -238,6 +240,23 @@ def corner_rows(p: CornerParams, s: CornerState, inp: CornerInputs, out: CornerO
         lpv_kernel(p, s, inp, out)
     else:
         lugre_kf_kernel(p, s, inp, out)
+
+
+@njit(cache=True, error_model="numpy")
+def seed_corners(p: CornerParams, s: CornerState, omega: np.ndarray, vxt: np.ndarray) -> None:
+    """Re-initialise the observers' relative velocity v_r = R ω − v_xt from an outside
+    estimate of the corners' tire-frame speeds ``vxt`` (4,) m/s at the wheel speeds ``omega``
+    (4,) rad/s of the sample last processed (the pipeline's reference filter after a restart,
+    :data:`vestim.pipeline.rows.SEED_AT`); a corner with a NaN in either is left as it is.
+    The deflection and the covariance are kept: they follow the force, not the speed."""
+    for c in range(4):
+        v_r = p.radius * omega[c] - vxt[c]
+        if np.isnan(v_r):
+            continue
+        if p.lpv:
+            s.xx[c, LPV_VR] = v_r
+        else:
+            s.x[c, KF_VR] = v_r
 
 
 class CornerVelocityEstimator:
