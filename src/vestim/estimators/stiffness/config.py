@@ -172,6 +172,8 @@ class StiffnessConfig:
             mean, relative to the nominal value (the spread of the means is the prior sigma).
         rls_forgetting: RLS only: forgetting factor of the recursive least squares.
         rls_cutoff: RLS only: Hz, low-pass applied to both sides of the regression.
+        gyro_lookahead: Algorithm 1 only: condition the draw of w_k on the gyro sample of
+            step k + 1 (``pf.alg1_kernel``, docs/methods_stiffness.md).
     """
 
     forgetting: float = 0.99
@@ -203,6 +205,7 @@ class StiffnessConfig:
     augpf_initial_sd: float = 0.05
     rls_forgetting: float = 0.999
     rls_cutoff: float = 5.0
+    gyro_lookahead: bool = True
 
     def __post_init__(self) -> None:
         for f in fields(self):
