@@ -131,6 +131,34 @@ def attitude_scale(t: np.ndarray, rate: np.ndarray, accel: np.ndarray, sign: flo
     return 1.0 / (1.0 - k * G)
 
 
+def roll_compensated(t: np.ndarray, roll_rate: np.ndarray, ay: np.ndarray, scale: np.ndarray,
+                     crossover: float) -> np.ndarray:
+    """Lateral specific force with the gravity through the *measured* roll angle removed, m/s².
+
+    A body-fixed accelerometer reads a_y,m = a_y + g φ. 002 Sec. II-A takes φ at its steady
+    state c_φ a_y, i.e. a_y = a_y,m/(1 + c_φ g) (``scale``, :func:`attitude_scale`). At a
+    steering step the body's roll lags the lateral acceleration (the roll mode, 1–3 Hz), so
+    a_y,m/(1 + c_φ g) undershoots the step for a few tenths of a second while the tire forces
+    do not; Algorithm 1 learns the level of the cornering stiffness mostly from those
+    transients (in a steady turn a common scaling of both axles changes v_y, which is not
+    measured, and only weakly the yaw rate), and on the cross-plant x12 log the lag took
+    9–10 % off the front cornering stiffness after the change. Here φ comes from a
+    complementary filter: its steady-state value k a_y,m (k = (1 − 1/scale)/g, the measured
+    gradient) below ``crossover`` Hz, the integrated roll rate above it (first-order pair: a
+    gyro bias b leaves a constant error b/(2π crossover) in φ). In steady state the result is
+    a_y,m/(1 + c_φ g) exactly.
+
+    Args:
+        t: (K,) s. roll_rate: (K,) rad/s. ay: (K,) measured lateral specific force, m/s².
+        scale: (K,) 1 + c_φ g from :func:`attitude_scale`. crossover: Hz (> 0).
+    """
+    dt = np.diff(t, prepend=t[0])
+    angle = np.cumsum(0.5 * (roll_rate + np.concatenate([roll_rate[:1], roll_rate[:-1]])) * dt)
+    static = (1.0 - 1.0 / scale) / G * ay
+    gap = angle - static
+    return ay - G * (static + gap - lowpass(gap, t, crossover))
+
+
 def prepare_inputs(log: pd.DataFrame, vehicle: Vehicle, config: StiffnessConfig) -> StiffnessInputs:
     """Build :class:`StiffnessInputs` from a spec log.
 
@@ -172,6 +200,9 @@ def prepare_inputs(log: pd.DataFrame, vehicle: Vehicle, config: StiffnessConfig)
     y = np.empty((t.shape[0], N_MEAS))
     y[:, 0] = ax / scale[:, 0]
     y[:, 1] = ay / scale[:, 1]
+    if config.attitude_from_rates and config.roll_crossover > 0.0 and "roll_rate" in log.columns:
+        y[:, 1] = roll_compensated(t, _column(log, "roll_rate"), ay, scale[:, 1],
+                                   config.roll_crossover)
     y[:, 2] = yaw_rate
     rw_f = vehicle.body.wheel_radius * om_f
     rw_r = vehicle.body.wheel_radius * om_r
