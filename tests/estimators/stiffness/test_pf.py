@@ -83,7 +83,7 @@ def _reference_alg1(y, u, active, bias_on, p, r_pk, q_pk, forget, model_error, x
     x, mu, b, logw = x.copy(), mu.copy(), b.copy(), logw.copy()
     for k in range(y.shape[0]):
         dof = nu - 2.0
-        xn, ds, hs = np.empty_like(x), [], []
+        xn, ds = np.empty_like(x), []
         for i in range(n):
             f, g, h, d = np.empty(3), np.empty((3, 3)), np.empty(3), np.empty((3, 3))
             model_terms(x[i], u[k], p, f, g, h, d)
@@ -111,8 +111,13 @@ def _reference_alg1(y, u, active, bias_on, p, r_pk, q_pk, forget, model_error, x
             if active[k]:
                 niw_update(gamma, nu, mu[i], lam[i], w)                              # (19)
             xn[i] = f + g @ w                                                        # (9)
-            ds.append(d)
-            hs.append(h)
+            if lookahead and k + 1 < y.shape[0]:
+                # eq. (30) sees the look-ahead row: its innovation and its Σ̂ term
+                d_b, y_b, h_b = d_c, np.array([*y[k, :2], y[k + 1, 2]]), np.array([*h[:2], f[2]])
+                me_b = (u[k, 3] * model_error[2]) ** 2
+            else:
+                d_b, y_b, h_b, me_b = d, y[k], h, 0.0
+            ds.append((d_b, y_b, h_b, me_b))
         if active[k]:
             gamma, nu = gamma / (1 + gamma), nu + 1
         q = np.exp(logw - logw.max())
@@ -139,10 +144,13 @@ def _reference_alg1(y, u, active, bias_on, p, r_pk, q_pk, forget, model_error, x
         x_unc[:2, 2] = x_unc[2, :2] = 0.0     # the kernel keeps P block-diagonal
         for i in range(n):
             if bias_on[k]:                                                           # (30)
-                d = ds[i]
-                s_cov = pbf[i] + r_full + d @ (lam[i] / (nu - 4)) @ d.T + x_unc
+                d, y_b, h_b, me_b = ds[i]
+                s_w = d @ (lam[i] / (nu - 4)) @ d.T
+                s_w[:2, 2] = s_w[2, :2] = 0.0     # the kernel keeps P block-diagonal
+                s_cov = pbf[i] + r_full + s_w + x_unc
+                s_cov[2, 2] += me_b
                 gain = pbf[i] @ np.linalg.inv(s_cov)
-                b[i] = b[i] + gain @ (y[k] - hs[i] - d @ mu[i] - b[i])
+                b[i] = b[i] + gain @ (y_b - h_b - d @ mu[i] - b[i])
                 pbf[i] = pbf[i] - gain @ s_cov @ gain.T + np.diag(q_pk[[PXX, PYY, PRR]])  # (29)
             if active[k]:
                 niw_predict(gamma, nu, lam[i], forget)                               # (20)

@@ -53,6 +53,17 @@ Choices where the paper is silent or ambiguous (also in docs/methods_stiffness.m
   frozen then (``settled`` = False), see :class:`~vestim.estimators.stiffness.config.StiffnessConfig`.
 * Bias filter. Eq. (30) with the state uncertainty of the cloud added to S; see
   :func:`bias_kalman`.
+* Gyro look-ahead (``gyro_lookahead``, default on). As printed, w_k is conditioned on
+  y_k, whose gyro row of d is zero: the yaw dynamics, which in a steering step are the
+  only measurement of the front/rear split of the cornering stiffness, reach the
+  statistics only through the weights of the next step. The gyro sample of step k + 1
+  measures ψ̇_{k+1} = f_ψ̇(x_k) + g_ψ̇ w_k + b_ψ̇ + e (eq. (9)), affine in w_k, so Theorem 1
+  applies unchanged to [a_x,k, a_y,k, ψ̇_{k+1}]: the gyro row of d is the yaw row of g,
+  its noise R_ψ̇ + P_ψ̇ + (T_s σ_me,ψ̇)², and Λ̃_ē of eq. (35) a full 3 × 3. The same
+  measurement weighs the particles (eq. (36)); the gyro sample of step k has then been
+  used at step k − 1 and is not used again. Eq. (30)'s gyro residual is that of the
+  look-ahead row with μ̂_{k|k} (and g_ψ̇ Σ̂ g_ψ̇ᵀ in S): the residual of ψ̇_k after the draw
+  would no longer see an error of b̂_ψ̇, since the cloud then follows gyro − b̂_ψ̇.
 * Estimates. Lines 11–13 are evaluated on the weighted particles of line 6,
   before the resampling of lines 8–10: the same sums (42), (26)–(27) of the same
   posterior, without the extra Monte-Carlo variance that resampling adds
@@ -146,8 +157,9 @@ C_PB = 18
 C_EB = 22
 """Innovation y − h − d μ̂_{k|k} − b_{k|k−1} of eq. (30), 3 columns."""
 C_SB = 25
-"""d Σ̂_{k|k} dᵀ (accelerometer block, packed ``PXX``, ``PXY``, ``PYY``) of eq. (30), 3 columns."""
-N_COL = 28
+"""d Σ̂_{k|k} dᵀ of eq. (30), packed like P (``PXX``, ``PXY``, ``PYY``, ``PRR``), 4 columns; the
+gyro entry is non-zero only with the gyro look-ahead (g_ψ̇ Σ̂ g_ψ̇ᵀ plus the model-error variance)."""
+N_COL = 29
 
 # Columns of the per-step block of standard normals (one row per particle).
 D_W = 0
@@ -383,8 +395,8 @@ def alg1_kernel(y: np.ndarray, u: np.ndarray, active: np.ndarray, bias_on: np.nd
         gyro_lookahead: condition w_k (Theorem 1) and weigh the particles (eq. (36)) on
             [a_x,k, a_y,k, ψ̇_{k+1}] instead of y_k = [a_x,k, a_y,k, ψ̇_k]: the gyro sample
             of step k + 1 measures ψ̇_{k+1} = f_ψ̇ + g_ψ̇ w_k (eq. (9)), so its row of d is
-            the yaw row of g and its noise R_ψ̇ + P_ψ̇ + (T_s σ_me,ψ̇)² (see the module
-            docstring, *Gyro look-ahead*). False is Algorithm 1 as printed.
+            the yaw row of g and its noise R_ψ̇ + P_ψ̇ + (T_s σ_me,ψ̇)² (module docstring,
+            *Gyro look-ahead*). False is Algorithm 1 as printed.
 
     Returns:
         The number of resampling events.
@@ -493,7 +505,7 @@ def alg1_kernel(y: np.ndarray, u: np.ndarray, active: np.ndarray, bias_on: np.nd
                                      part[i, C_EB], part[i, C_EB + 1], part[i, C_EB + 2],
                                      bi * part[i, C_SB + PXX], bi * part[i, C_SB + PXY],
                                      bi * part[i, C_SB + PYY], br00, br01, br11, brrr,
-                                     bu00, bu01, bu11, burr)
+                                     bu00, bu01, bu11, burr + bi * part[i, C_SB + PRR])
                     part[i, C_B] = nb[0]
                     part[i, C_B + 1] = nb[1]
                     part[i, C_B + 2] = nb[2]
@@ -652,7 +664,17 @@ def alg1_kernel(y: np.ndarray, u: np.ndarray, active: np.ndarray, bias_on: np.nd
             dm2 = mp2 - m2
             part[i, C_EB] = z0 - (dxx * dm0 + dxyf * dm1 + dxyr * dm2)
             part[i, C_EB + 1] = z1 - (dyx * dm0 + dyyf * dm1 + dyyr * dm2)
-            part[i, C_EB + 2] = z2b
+            if look_k:
+                # eq. (30)'s gyro residual is that of the look-ahead row, taken before the draw
+                # has pulled ψ̇_{k+1} towards the gyro (after it, the cloud's ψ̇ follows
+                # gyro − b̂ and the residual no longer sees an error in b̂)
+                part[i, C_EB + 2] = z2 - (dr0 * dm0 + dr1 * dm1 + dr2 * dm2)
+                dzr = dr0 * zw0 + dr1 * zw1 + dr2 * zw2
+                part[i, C_SB + PRR] = inv_c_post * (
+                    cc0 * dr0 + cc1 * dr1 + cc2 * dr2 + c_upd * dzr * dzr) + me_r2
+            else:
+                part[i, C_EB + 2] = z2b
+                part[i, C_SB + PRR] = 0.0
             dz0 = dxx * zw0 + dxyf * zw1 + dxyr * zw2
             dz1 = dyx * zw0 + dyyf * zw1 + dyyr * zw2
             part[i, C_SB + PXX] = inv_c_post * (g00 + c_upd * dz0 * dz0)
