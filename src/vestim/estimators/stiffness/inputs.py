@@ -47,7 +47,9 @@ class StiffnessInputs:
         t: (K,) s. u: (K, 4) [δ rad, ω_f rad/s, ω_r rad/s, T_s s] with δ the mean of the
             two front road-wheel angles (002 Sec. V) and ω the (low-passed) axle means.
         y: (K, 3) [a_x, a_y, ψ̇] with a_x, a_y divided by (1 + c g) (roll and pitch
-            compensation, 002 Sec. II-A), m/s², m/s², rad/s.
+            compensation, 002 Sec. II-A; a_y with the measured roll angle above
+            ``roll_crossover`` where the log has ``roll_rate``, :func:`roll_compensated`),
+            m/s², m/s², rad/s.
         active: (K,) activation flags of 002 Sec. V (statistics update and forgetting).
         settled: (K,) False during the first ``settle_time`` s: bias filter frozen too.
         accel_scale: (K, 2) the factors (1 + c_θ g, 1 + c_φ g) dividing a_x, a_y at each
@@ -90,6 +92,12 @@ def lowpass(x: np.ndarray, t: np.ndarray, cutoff: float) -> np.ndarray:
     return out
 
 
+def _integrate(t: np.ndarray, rate: np.ndarray) -> np.ndarray:
+    """Trapezoidal running integral of a body rate (rad/s) from t[0]: the attitude angle, rad."""
+    dt = np.diff(t, prepend=t[0])
+    return np.cumsum(0.5 * (rate + np.concatenate([rate[:1], rate[:-1]])) * dt)
+
+
 def attitude_scale(t: np.ndarray, rate: np.ndarray, accel: np.ndarray, sign: float,
                    c_prior: float, cutoff: float, prior_weight: float) -> np.ndarray:
     """Causal estimate of the factor 1 + c g by which a body-fixed accelerometer overreads.
@@ -117,8 +125,7 @@ def attitude_scale(t: np.ndarray, rate: np.ndarray, accel: np.ndarray, sign: flo
     Returns:
         (K,) the factor 1 + c g at each sample.
     """
-    dt = np.diff(t, prepend=t[0])
-    angle = np.cumsum(0.5 * (rate + np.concatenate([rate[:1], rate[:-1]])) * dt)
+    angle = _integrate(t, rate)
     ts = float(np.median(np.diff(t)))
     nyq = 0.5 / ts
     b, a = butter(2, [min(cutoff / nyq, 0.5), min(ATTITUDE_BAND_TOP / nyq, 0.99)], btype="bandpass")
@@ -152,8 +159,7 @@ def roll_compensated(t: np.ndarray, roll_rate: np.ndarray, ay: np.ndarray, scale
         t: (K,) s. roll_rate: (K,) rad/s. ay: (K,) measured lateral specific force, m/s².
         scale: (K,) 1 + c_φ g from :func:`attitude_scale`. crossover: Hz (> 0).
     """
-    dt = np.diff(t, prepend=t[0])
-    angle = np.cumsum(0.5 * (roll_rate + np.concatenate([roll_rate[:1], roll_rate[:-1]])) * dt)
+    angle = _integrate(t, roll_rate)
     static = (1.0 - 1.0 / scale) / G * ay
     gap = angle - static
     return ay - G * (static + gap - lowpass(gap, t, crossover))
