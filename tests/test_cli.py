@@ -113,6 +113,27 @@ def test_estimate_stiffness_pf_writes_stiffness_channels(tmp_path):
     assert est["stiffness_cy_f"].gt(0).all()
 
 
+
+def test_estimate_stiffness_ekf_writes_stiffness_channels(tmp_path):
+    """--method stiffness-ekf runs the augmented-state EKF (002 Sec. V, the method the verdict in
+    docs/results_stiffness.md favours on the cross-plant steps) and records it in the metadata;
+    an unknown method is refused with the list of choices."""
+    sim = tmp_path / "sim.parquet"
+    assert runner.invoke(app, ["simulate", "stiffness_study", "--out", str(sim)]).exit_code == 0
+    out = tmp_path / "k.parquet"
+    res = runner.invoke(app, ["estimate", "--vehicle", "hashemi_suv", str(sim),
+                              "--method", "stiffness-ekf", "--out", str(out)])
+    assert res.exit_code == 0, res.output
+    est = read_log(out)
+    for col in ("stiffness_cx_f", "stiffness_cy_f", "stiffness_cy_r", "vx", "vy", "yaw_rate"):
+        assert col in est.columns
+    assert est["stiffness_cy_f"].gt(0).all()
+    import pyarrow.parquet as pq
+    assert b"stiffness-ekf" in b"".join((pq.read_schema(out).metadata or {}).values())
+    bad = runner.invoke(app, ["estimate", "--vehicle", "hashemi_suv", str(sim),
+                              "--method", "stiffness-rls", "--out", str(tmp_path / "b.parquet")])
+    assert bad.exit_code == 2 and "stiffness-ekf" in bad.output and "Traceback" not in bad.output
+
 def _short_log(tmp_path, name="log.parquet"):
     from vestim.io import load_vehicle, write_log
     from vestim.sim import get_maneuver, simulate

@@ -250,7 +250,8 @@ def estimate_cmd(
                                                 "(docs/configuration.md); the stage flags "
                                                 "override its methods.")] = None,
     method: Annotated[str, typer.Option(help="pipeline (forces and velocities) | stiffness-pf "
-                                        "(002 Algorithm 1).")] = "pipeline",
+                                        "(002 Algorithm 1) | stiffness-ekf (augmented-state "
+                                        "EKF, 002 Sec. V; docs/results_stiffness.md).")] = "pipeline",
     particles: Annotated[int, typer.Option(help="Particles of stiffness-pf.")] = 500,
     seed: Annotated[int, typer.Option(help="Random seed of stiffness-pf.")] = 0,
     map_path: Annotated[Path | None, typer.Option(
@@ -261,11 +262,12 @@ def estimate_cmd(
     if map_path is not None and method != "pipeline":
         raise _fail(ValueError("--map works with --method pipeline; for other methods convert "
                                "the recording first with `vestim import`"))
-    if method == "stiffness-pf":
-        _estimate_stiffness(log_path, out, vehicle, particles, seed)
+    if method in STIFFNESS_METHODS:
+        _estimate_stiffness(log_path, out, vehicle, particles, seed, method)
         return
     if method != "pipeline":
-        raise _fail(ValueError(f"method {method!r}: use pipeline or stiffness-pf"))
+        raise _fail(ValueError(f"method {method!r}: use pipeline, "
+                               + " or ".join(STIFFNESS_METHODS)))
     import dataclasses
     import itertools
 
@@ -344,8 +346,12 @@ def estimate_cmd(
                       f"{time.perf_counter() - t0:.2f} s)"))
 
 
+STIFFNESS_METHODS: dict[str, str] = {"stiffness-pf": "pf", "stiffness-ekf": "ekf"}
+"""``vestim estimate --method`` names of the stiffness estimators → ``estimate_stiffness``'s method."""
+
+
 def _estimate_stiffness(log_path: Path, out: Path, vehicle: str, particles: int,
-                        seed: int) -> None:
+                        seed: int, method: str = "stiffness-pf") -> None:
     from vestim.estimators.stiffness import estimate_stiffness
     from vestim.io import load_vehicle, read_log, write_log
     from vestim.io.files import check_output_path
@@ -357,8 +363,9 @@ def _estimate_stiffness(log_path: Path, out: Path, vehicle: str, particles: int,
         log = read_log(log_path)
         checked = gate(log, veh, source=str(log_path))  # the input gate of the pipeline path
         t0 = time.perf_counter()
-        est = estimate_stiffness(log, veh, particles=particles, seed=seed)
-        path = write_log(est, out, metadata={"vehicle": veh.name, "method": "stiffness-pf",
+        est = estimate_stiffness(log, veh, particles=particles, seed=seed,
+                                 method=STIFFNESS_METHODS[method])
+        path = write_log(est, out, metadata={"vehicle": veh.name, "method": method,
                                              "particles": str(particles), "seed": str(seed),
                                              "source": str(log_path), **checked.metadata()})
     except (VestimError, ValueError, OSError) as exc:

@@ -64,8 +64,12 @@ def _unpack(lam: np.ndarray) -> np.ndarray:
 
 
 def _reference_alg1(y, u, active, bias_on, p, r_pk, q_pk, forget, model_error, x, mu, lam, b, pb,
-                    logw, gamma, nu, blocks):
+                    logw, gamma, nu, blocks, lookahead=False):
     """Algorithm 1 without resampling, composed from :mod:`vestim.filters.niw` and dense numpy.
+
+    ``lookahead``: the gyro row of the measurement that conditions w_k and weighs the particles
+    is the gyro sample of step k + 1, ψ̇_{k+1} = f_ψ̇ + g_ψ̇ w_k (eq. (9)): its row of d is the
+    yaw row of g, its noise R_ψ̇ + P_ψ̇ + (T_s σ_me,ψ̇)²; at the last step it carries nothing.
 
     ``blocks[k]`` is the (N, 7) block of normals the kernel draws at the start of step k
     (and ``blocks[K]`` at the end): columns 0–3 the Student-t draw of step k, columns 4–6
@@ -79,16 +83,24 @@ def _reference_alg1(y, u, active, bias_on, p, r_pk, q_pk, forget, model_error, x
     x, mu, b, logw = x.copy(), mu.copy(), b.copy(), logw.copy()
     for k in range(y.shape[0]):
         dof = nu - 2.0
-        xn, ds, hs = np.empty_like(x), [], []
+        xn, ds = np.empty_like(x), []
         for i in range(n):
             f, g, h, d = np.empty(3), np.empty((3, 3)), np.empty(3), np.empty((3, 3))
             model_terms(x[i], u[k], p, f, g, h, d)
             lam_e, low_e = np.empty((3, 3)), np.empty((3, 3))
-            moment_matched_scale(d, lam[i], gamma, dof, r_full + pbf[i], lam_e)    # (35)
+            d_c, noise, z = d.copy(), r_full + pbf[i], y[k] - h - b[i] - d @ mu[i]
+            if lookahead:
+                d_c[2] = g[2] if k + 1 < y.shape[0] else 0.0
+                noise = noise.copy()
+                if k + 1 < y.shape[0]:
+                    noise[2, 2] += (u[k, 3] * model_error[2]) ** 2
+                    z[2] = y[k + 1, 2] - f[2] - b[i][2] - g[2] @ mu[i]
+                else:
+                    z[2] = 0.0
+            moment_matched_scale(d_c, lam[i], gamma, dof, noise, lam_e)             # (35)
             cholesky(lam_e, low_e)
-            z = y[k] - h - b[i] - d @ mu[i]
             mu_c, scale_c, low_c = np.empty(3), np.empty((3, 3)), np.empty((3, 3))
-            dof_c, maha = t_condition(mu[i], (1 + gamma) / dof * lam[i], d, low_e, z, dof, mu_c,
+            dof_c, maha = t_condition(mu[i], (1 + gamma) / dof * lam[i], d_c, low_e, z, dof, mu_c,
                                       scale_c, np.empty((3, 3)), np.empty(3))         # (40)–(41)
             logw[i] += mvt_log_kernel(maha, chol_logdet(low_e), dof, 3)             # (36)
             cholesky(scale_c, low_c)
@@ -99,8 +111,13 @@ def _reference_alg1(y, u, active, bias_on, p, r_pk, q_pk, forget, model_error, x
             if active[k]:
                 niw_update(gamma, nu, mu[i], lam[i], w)                              # (19)
             xn[i] = f + g @ w                                                        # (9)
-            ds.append(d)
-            hs.append(h)
+            if lookahead and k + 1 < y.shape[0]:
+                # eq. (30) sees the look-ahead row: its innovation and its Σ̂ term
+                d_b, y_b, h_b = d_c, np.array([*y[k, :2], y[k + 1, 2]]), np.array([*h[:2], f[2]])
+                me_b = (u[k, 3] * model_error[2]) ** 2
+            else:
+                d_b, y_b, h_b, me_b = d, y[k], h, 0.0
+            ds.append((d_b, y_b, h_b, me_b))
         if active[k]:
             gamma, nu = gamma / (1 + gamma), nu + 1
         q = np.exp(logw - logw.max())
@@ -127,10 +144,13 @@ def _reference_alg1(y, u, active, bias_on, p, r_pk, q_pk, forget, model_error, x
         x_unc[:2, 2] = x_unc[2, :2] = 0.0     # the kernel keeps P block-diagonal
         for i in range(n):
             if bias_on[k]:                                                           # (30)
-                d = ds[i]
-                s_cov = pbf[i] + r_full + d @ (lam[i] / (nu - 4)) @ d.T + x_unc
+                d, y_b, h_b, me_b = ds[i]
+                s_w = d @ (lam[i] / (nu - 4)) @ d.T
+                s_w[:2, 2] = s_w[2, :2] = 0.0     # the kernel keeps P block-diagonal
+                s_cov = pbf[i] + r_full + s_w + x_unc
+                s_cov[2, 2] += me_b
                 gain = pbf[i] @ np.linalg.inv(s_cov)
-                b[i] = b[i] + gain @ (y[k] - hs[i] - d @ mu[i] - b[i])
+                b[i] = b[i] + gain @ (y_b - h_b - d @ mu[i] - b[i])
                 pbf[i] = pbf[i] - gain @ s_cov @ gain.T + np.diag(q_pk[[PXX, PYY, PRR]])  # (29)
             if active[k]:
                 niw_predict(gamma, nu, lam[i], forget)                               # (20)
@@ -141,11 +161,15 @@ def _reference_alg1(y, u, active, bias_on, p, r_pk, q_pk, forget, model_error, x
     return x, mu, lam, b, pbf, logw, gamma, nu, {k: np.array(v) for k, v in out.items()}
 
 
-def test_kernel_equals_the_generic_functions():
+@pytest.mark.parametrize("lookahead", [False, True])
+def test_kernel_equals_the_generic_functions(lookahead):
     """Three steps of the fused kernel equal Algorithm 1 composed from :mod:`vestim.filters.niw`
     (eq. (35), (36), (39)–(41), (19), (20), (9)), a dense bias Kalman filter (eq. (29)–(30))
     and dense moments (eq. (27), (42)), with the same normals (1e-8 relative: the kernel
     reorders operations and contracts multiply-adds; three steps amplify the round-off).
+    With ``lookahead`` the gyro row of the conditioning measurement is the next step's gyro
+    sample (Theorem 1 with the yaw row of g as that row of d); the generic functions take
+    the full 3 × 3 d, so the same composition checks the kernel's 3 × 3 inverse.
 
     Steps: inactive (statistics frozen, bias filter frozen), then two active steps with the
     bias filter and model-error noise on; N_thr = 0, so nothing is resampled.
@@ -180,7 +204,7 @@ def test_kernel_equals_the_generic_functions():
         fill_normals(stream, blk)
         blocks.append(blk)
     ref = _reference_alg1(y, u, active, bias_on, p, r_pk, q_pk, forget, model_error, x, mu,
-                          [_unpack(v) for v in lam], b, pb, logw, gamma, nu, blocks)
+                          [_unpack(v) for v in lam], b, pb, logw, gamma, nu, blocks, lookahead)
     k = len(y)
     out = {name: np.empty(shape) for name, shape in (("xh", (k, 3)), ("xv", (k, 3)), ("wh", (k, 3)),
                                                      ("wc", (k, 3, 3)), ("bh", (k, 3)), ("ess", (k,)))}
@@ -188,7 +212,8 @@ def test_kernel_equals_the_generic_functions():
     shared = np.array([gamma, nu])
     logwk = logw.copy()
     alg1_kernel(y, u, active, bias_on, p, r_pk, q_pk, 1.0, lo, hi, forget, 0.005, 0.0, model_error, part,
-                logwk, shared, state, out["xh"], out["xv"], out["wh"], out["wc"], out["bh"], out["ess"])
+                logwk, shared, state, out["xh"], out["xv"], out["wh"], out["wc"], out["bh"], out["ess"],
+                lookahead)
     x_r, mu_r, lam_r, b_r, pb_r, logw_r, gamma_r, nu_r, est = ref
     np.testing.assert_allclose(part[:, C_X:C_X + 3], x_r, rtol=1e-8)
     np.testing.assert_allclose(part[:, C_MU:C_MU + 3], mu_r, rtol=1e-8)

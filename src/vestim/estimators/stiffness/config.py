@@ -156,6 +156,11 @@ class StiffnessConfig:
             stiffness.inputs.attitude_scale`) instead of taking them from ``[suspension]``.
         attitude_cutoff: Hz, high-pass of that regression (removes the integrated gyro bias).
         attitude_prior_weight: s·(m/s²)², weight of the ``[suspension]`` gradient in it.
+        roll_crossover: Hz; with ``attitude_from_rates`` and a ``roll_rate`` channel, a_y is
+            compensated with the roll angle of a complementary filter (the steady-state
+            gradient below this frequency, the integrated roll rate above it; :func:`~vestim.
+            estimators.stiffness.inputs.roll_compensated`). 0 divides by 1 + c_φ g only
+            (002 Sec. II-A).
         settle_time: s; the filter is not active during the first ``settle_time`` of the
             log, while the state posterior converges from P_0 (a 1 m/s error of v_x is a
             4.5 % slip error at 22 m/s, which the statistics would otherwise learn as ΔC^x).
@@ -172,6 +177,8 @@ class StiffnessConfig:
             mean, relative to the nominal value (the spread of the means is the prior sigma).
         rls_forgetting: RLS only: forgetting factor of the recursive least squares.
         rls_cutoff: RLS only: Hz, low-pass applied to both sides of the regression.
+        gyro_lookahead: Algorithm 1 only: condition the draw of w_k on the gyro sample of
+            step k + 1 (``pf.alg1_kernel``, docs/methods_stiffness.md).
     """
 
     forgetting: float = 0.99
@@ -193,6 +200,7 @@ class StiffnessConfig:
     attitude_from_rates: bool = True
     attitude_cutoff: float = 0.1
     attitude_prior_weight: float = 1.0
+    roll_crossover: float = 0.5
     settle_time: float = 1.0
     v_min: float = 5.0
     delta_min: float = 0.002
@@ -203,6 +211,7 @@ class StiffnessConfig:
     augpf_initial_sd: float = 0.05
     rls_forgetting: float = 0.999
     rls_cutoff: float = 5.0
+    gyro_lookahead: bool = True
 
     def __post_init__(self) -> None:
         for f in fields(self):

@@ -220,7 +220,8 @@ class NoiseAdaptivePF(_Setup):
                             c.forgetting,
                             self.forgetting_period(inputs), c.resample_threshold * n,
                             np.asarray(c.model_error, dtype=float), part, logw, shared,
-                            seed_state(rng), x_hat, x_var, w_hat, w_cov, b_hat, ess)
+                            seed_state(rng), x_hat, x_var, w_hat, w_cov, b_hat, ess,
+                            c.gyro_lookahead)
         w_sd = np.sqrt(np.maximum(np.diagonal(w_cov, axis1=1, axis2=2), 0.0))
         return self.result(inputs, w_hat, w_sd, x_hat, np.sqrt(x_var), b_hat, "pf", ess, n_res)
 

@@ -47,7 +47,9 @@ class StiffnessInputs:
         t: (K,) s. u: (K, 4) [δ rad, ω_f rad/s, ω_r rad/s, T_s s] with δ the mean of the
             two front road-wheel angles (002 Sec. V) and ω the (low-passed) axle means.
         y: (K, 3) [a_x, a_y, ψ̇] with a_x, a_y divided by (1 + c g) (roll and pitch
-            compensation, 002 Sec. II-A), m/s², m/s², rad/s.
+            compensation, 002 Sec. II-A; a_y with the measured roll angle above
+            ``roll_crossover`` where the log has ``roll_rate``, :func:`roll_compensated`),
+            m/s², m/s², rad/s.
         active: (K,) activation flags of 002 Sec. V (statistics update and forgetting).
         settled: (K,) False during the first ``settle_time`` s: bias filter frozen too.
         accel_scale: (K, 2) the factors (1 + c_θ g, 1 + c_φ g) dividing a_x, a_y at each
@@ -90,6 +92,12 @@ def lowpass(x: np.ndarray, t: np.ndarray, cutoff: float) -> np.ndarray:
     return out
 
 
+def _integrate(t: np.ndarray, rate: np.ndarray) -> np.ndarray:
+    """Trapezoidal running integral of a body rate (rad/s) from t[0]: the attitude angle, rad."""
+    dt = np.diff(t, prepend=t[0])
+    return np.cumsum(0.5 * (rate + np.concatenate([rate[:1], rate[:-1]])) * dt)
+
+
 def attitude_scale(t: np.ndarray, rate: np.ndarray, accel: np.ndarray, sign: float,
                    c_prior: float, cutoff: float, prior_weight: float) -> np.ndarray:
     """Causal estimate of the factor 1 + c g by which a body-fixed accelerometer overreads.
@@ -117,8 +125,7 @@ def attitude_scale(t: np.ndarray, rate: np.ndarray, accel: np.ndarray, sign: flo
     Returns:
         (K,) the factor 1 + c g at each sample.
     """
-    dt = np.diff(t, prepend=t[0])
-    angle = np.cumsum(0.5 * (rate + np.concatenate([rate[:1], rate[:-1]])) * dt)
+    angle = _integrate(t, rate)
     ts = float(np.median(np.diff(t)))
     nyq = 0.5 / ts
     b, a = butter(2, [min(cutoff / nyq, 0.5), min(ATTITUDE_BAND_TOP / nyq, 0.99)], btype="bandpass")
@@ -129,6 +136,33 @@ def attitude_scale(t: np.ndarray, rate: np.ndarray, accel: np.ndarray, sign: flo
     w0 = prior_weight / ts
     k = (sign * np.cumsum(ang_hp * acc_hp) + w0 * k_prior) / (np.cumsum(acc_hp * acc_hp) + w0)
     return 1.0 / (1.0 - k * G)
+
+
+def roll_compensated(t: np.ndarray, roll_rate: np.ndarray, ay: np.ndarray, scale: np.ndarray,
+                     crossover: float) -> np.ndarray:
+    """Lateral specific force with the gravity through the *measured* roll angle removed, m/s².
+
+    A body-fixed accelerometer reads a_y,m = a_y + g φ. 002 Sec. II-A takes φ at its steady
+    state c_φ a_y, i.e. a_y = a_y,m/(1 + c_φ g) (``scale``, :func:`attitude_scale`). At a
+    steering step the body's roll lags the lateral acceleration (the roll mode, 1–3 Hz), so
+    a_y,m/(1 + c_φ g) undershoots the step for a few tenths of a second while the tire forces
+    do not; Algorithm 1 learns the level of the cornering stiffness mostly from those
+    transients (in a steady turn a common scaling of both axles changes v_y, which is not
+    measured, and only weakly the yaw rate), and on the cross-plant x12 log the lag took
+    9–10 % off the front cornering stiffness after the change. Here φ comes from a
+    complementary filter: its steady-state value k a_y,m (k = (1 − 1/scale)/g, the measured
+    gradient) below ``crossover`` Hz, the integrated roll rate above it (first-order pair: a
+    gyro bias b leaves a constant error b/(2π crossover) in φ). In steady state the result is
+    a_y,m/(1 + c_φ g) exactly.
+
+    Args:
+        t: (K,) s. roll_rate: (K,) rad/s. ay: (K,) measured lateral specific force, m/s².
+        scale: (K,) 1 + c_φ g from :func:`attitude_scale`. crossover: Hz (> 0).
+    """
+    angle = _integrate(t, roll_rate)
+    static = (1.0 - 1.0 / scale) / G * ay
+    gap = angle - static
+    return ay - G * (static + gap - lowpass(gap, t, crossover))
 
 
 def prepare_inputs(log: pd.DataFrame, vehicle: Vehicle, config: StiffnessConfig) -> StiffnessInputs:
@@ -172,6 +206,9 @@ def prepare_inputs(log: pd.DataFrame, vehicle: Vehicle, config: StiffnessConfig)
     y = np.empty((t.shape[0], N_MEAS))
     y[:, 0] = ax / scale[:, 0]
     y[:, 1] = ay / scale[:, 1]
+    if config.attitude_from_rates and config.roll_crossover > 0.0 and "roll_rate" in log.columns:
+        y[:, 1] = roll_compensated(t, _column(log, "roll_rate"), ay, scale[:, 1],
+                                   config.roll_crossover)
     y[:, 2] = yaw_rate
     rw_f = vehicle.body.wheel_radius * om_f
     rw_r = vehicle.body.wheel_radius * om_r

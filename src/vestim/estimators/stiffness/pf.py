@@ -53,6 +53,17 @@ Choices where the paper is silent or ambiguous (also in docs/methods_stiffness.m
   frozen then (``settled`` = False), see :class:`~vestim.estimators.stiffness.config.StiffnessConfig`.
 * Bias filter. Eq. (30) with the state uncertainty of the cloud added to S; see
   :func:`bias_kalman`.
+* Gyro look-ahead (``gyro_lookahead``, default on). As printed, w_k is conditioned on
+  y_k, whose gyro row of d is zero: the yaw dynamics, which in a steering step are the
+  only measurement of the front/rear split of the cornering stiffness, reach the
+  statistics only through the weights of the next step. The gyro sample of step k + 1
+  measures ψ̇_{k+1} = f_ψ̇(x_k) + g_ψ̇ w_k + b_ψ̇ + e (eq. (9)), affine in w_k, so Theorem 1
+  applies unchanged to [a_x,k, a_y,k, ψ̇_{k+1}]: the gyro row of d is the yaw row of g,
+  its noise R_ψ̇ + P_ψ̇ + (T_s σ_me,ψ̇)², and Λ̃_ē of eq. (35) a full 3 × 3. The same
+  measurement weighs the particles (eq. (36)); the gyro sample of step k has then been
+  used at step k − 1 and is not used again. Eq. (30)'s gyro residual is that of the
+  look-ahead row with μ̂_{k|k} (and g_ψ̇ Σ̂ g_ψ̇ᵀ in S): the residual of ψ̇_k after the draw
+  would no longer see an error of b̂_ψ̇, since the cloud then follows gyro − b̂_ψ̇.
 * Estimates. Lines 11–13 are evaluated on the weighted particles of line 6,
   before the resampling of lines 8–10: the same sums (42), (26)–(27) of the same
   posterior, without the extra Monte-Carlo variance that resampling adds
@@ -146,8 +157,9 @@ C_PB = 18
 C_EB = 22
 """Innovation y − h − d μ̂_{k|k} − b_{k|k−1} of eq. (30), 3 columns."""
 C_SB = 25
-"""d Σ̂_{k|k} dᵀ (accelerometer block, packed ``PXX``, ``PXY``, ``PYY``) of eq. (30), 3 columns."""
-N_COL = 28
+"""d Σ̂_{k|k} dᵀ of eq. (30), packed like P (``PXX``, ``PXY``, ``PYY``, ``PRR``), 4 columns; the
+gyro entry is non-zero only with the gyro look-ahead (g_ψ̇ Σ̂ g_ψ̇ᵀ plus the model-error variance)."""
+N_COL = 29
 
 # Columns of the per-step block of standard normals (one row per particle).
 D_W = 0
@@ -353,7 +365,7 @@ def alg1_kernel(y: np.ndarray, u: np.ndarray, active: np.ndarray, bias_on: np.nd
                 model_error: np.ndarray, part: np.ndarray, logw: np.ndarray, shared: np.ndarray,
                 rng_state: np.ndarray,
                 x_hat: np.ndarray, x_var: np.ndarray, w_hat: np.ndarray, w_cov: np.ndarray,
-                b_hat: np.ndarray, ess: np.ndarray) -> int:
+                b_hat: np.ndarray, ess: np.ndarray, gyro_lookahead: bool = False) -> int:
     """Run Algorithm 1 of 002 over K steps; the particle array is updated in place.
 
     Args:
@@ -380,6 +392,11 @@ def alg1_kernel(y: np.ndarray, u: np.ndarray, active: np.ndarray, bias_on: np.nd
         x_hat, x_var: (K, 3) ← weighted mean and variance of x_k (eq. (42)).
         w_hat: (K, 3) ← μ̂_k (eq. (27a)). w_cov: (K, 3, 3) ← Σ̂_k (eq. (27b)).
         b_hat: (K, 3) ← weighted mean of b_{k|k}. ess: (K,) ← N_eff of line 7.
+        gyro_lookahead: condition w_k (Theorem 1) and weigh the particles (eq. (36)) on
+            [a_x,k, a_y,k, ψ̇_{k+1}] instead of y_k = [a_x,k, a_y,k, ψ̇_k]: the gyro sample
+            of step k + 1 measures ψ̇_{k+1} = f_ψ̇ + g_ψ̇ w_k (eq. (9)), so its row of d is
+            the yaw row of g and its noise R_ψ̇ + P_ψ̇ + (T_s σ_me,ψ̇)² (module docstring,
+            *Gyro look-ahead*). False is Algorithm 1 as printed.
 
     Returns:
         The number of resampling events.
@@ -402,6 +419,7 @@ def alg1_kernel(y: np.ndarray, u: np.ndarray, active: np.ndarray, bias_on: np.nd
     me_vx = model_error[VX]
     me_vy = model_error[VY]
     me_r = model_error[YAW_RATE]
+    look = gyro_lookahead
     r00 = r_pk[PXX]
     r01 = r_pk[PXY]
     r11 = r_pk[PYY]
@@ -437,6 +455,9 @@ def alg1_kernel(y: np.ndarray, u: np.ndarray, active: np.ndarray, bias_on: np.nd
         y0 = y[kk, M_AX]
         y1 = y[kk, M_AY]
         y2 = y[kk, M_YAW_RATE]
+        look_k = look and k + 1 < n_steps
+        y2n = y[k + 1, M_YAW_RATE] if look_k else y2
+        me_r2 = (ts * me_r) ** 2 if look_k else 0.0
         act = active[kk] and not last
         finish = k > 0
         finish_bias = finish and bias_on[k - 1]
@@ -484,7 +505,7 @@ def alg1_kernel(y: np.ndarray, u: np.ndarray, active: np.ndarray, bias_on: np.nd
                                      part[i, C_EB], part[i, C_EB + 1], part[i, C_EB + 2],
                                      bi * part[i, C_SB + PXX], bi * part[i, C_SB + PXY],
                                      bi * part[i, C_SB + PYY], br00, br01, br11, brrr,
-                                     bu00, bu01, bu11, burr)
+                                     bu00, bu01, bu11, burr + bi * part[i, C_SB + PRR])
                     part[i, C_B] = nb[0]
                     part[i, C_B + 1] = nb[1]
                     part[i, C_B + 2] = nb[2]
@@ -528,32 +549,56 @@ def alg1_kernel(y: np.ndarray, u: np.ndarray, active: np.ndarray, bias_on: np.nd
             b0 = dyx * l00 + dyyf * l01 + dyyr * l02
             b1 = dyx * l01 + dyyf * l11 + dyyr * l12
             b2 = dyx * l02 + dyyf * l12 + dyyr * l22
-            # d Λ dᵀ (accelerometer block)
-            g00 = a0 * dxx + a1 * dxyf + a2 * dxyr
-            g01 = a0 * dyx + a1 * dyyf + a2 * dyyr
-            g11 = b0 * dyx + b1 * dyyf + b2 * dyyr
-            # Λ̃_ē, eq. (35): c1 d Λ dᵀ + c2 (R + P)
-            e00 = c1 * g00 + c2 * (r00 + part[i, C_PB + PXX])
-            e01 = c1 * g01 + c2 * (r01 + part[i, C_PB + PXY])
-            e11 = c1 * g11 + c2 * (r11 + part[i, C_PB + PYY])
-            err = c2 * (rrr + part[i, C_PB + PRR])
-            det = e00 * e11 - e01 * e01
-            det_all = det * err
-            inv_all = 1.0 / det_all
-            inv_det = err * inv_all
-            i00 = e11 * inv_det
-            i01 = -e01 * inv_det
-            i11 = e00 * inv_det
             m0 = part[i, C_MU + W_CX]
             m1 = part[i, C_MU + W_CYF]
             m2 = part[i, C_MU + W_CYR]
+            # gyro row of the conditioning measurement: ψ̇_k (d row zero, eq. (12)) or, with
+            # the look-ahead, ψ̇_{k+1} = f_ψ̇ + g_ψ̇ w_k (eq. (9)); z2b is the gyro residual
+            # of eq. (30) either way
+            z2b = y2 - r - part[i, C_B + M_YAW_RATE]
+            if look_k:
+                dr0 = grx
+                dr1 = gryf
+                dr2 = gryr
+                z2 = (y2n - f2 - part[i, C_B + M_YAW_RATE]) - (dr0 * m0 + dr1 * m1 + dr2 * m2)
+            else:
+                dr0 = dr1 = dr2 = 0.0
+                z2 = 0.0 if look else z2b
+            cc0 = dr0 * l00 + dr1 * l01 + dr2 * l02
+            cc1 = dr0 * l01 + dr1 * l11 + dr2 * l12
+            cc2 = dr0 * l02 + dr1 * l12 + dr2 * l22
+            # d Λ dᵀ
+            g00 = a0 * dxx + a1 * dxyf + a2 * dxyr
+            g01 = a0 * dyx + a1 * dyyf + a2 * dyyr
+            g11 = b0 * dyx + b1 * dyyf + b2 * dyyr
+            # Λ̃_ē, eq. (35): c1 d Λ dᵀ + c2 (R + P); the gyro row couples only with the
+            # look-ahead (without it e02 = e12 = 0 and the inverse is the 2 × 2 block and 1/err)
+            e00 = c1 * g00 + c2 * (r00 + part[i, C_PB + PXX])
+            e01 = c1 * g01 + c2 * (r01 + part[i, C_PB + PXY])
+            e11 = c1 * g11 + c2 * (r11 + part[i, C_PB + PYY])
+            e02 = c1 * (a0 * dr0 + a1 * dr1 + a2 * dr2)
+            e12 = c1 * (b0 * dr0 + b1 * dr1 + b2 * dr2)
+            err = c1 * (cc0 * dr0 + cc1 * dr1 + cc2 * dr2) + c2 * (
+                rrr + part[i, C_PB + PRR] + me_r2)
+            det = e00 * e11 - e01 * e01
+            k00 = e11 * err - e12 * e12
+            k01 = e02 * e12 - e01 * err
+            k02 = e01 * e12 - e02 * e11
+            det_all = e00 * k00 + e01 * k01 + e02 * k02
+            inv_all = 1.0 / det_all
+            i00 = k00 * inv_all
+            i01 = k01 * inv_all
+            i02 = k02 * inv_all
+            i11 = (e00 * err - e02 * e02) * inv_all
+            i12 = (e01 * e02 - e00 * e12) * inv_all
+            i22 = det * inv_all
             # innovation z = ē − d μ̂ with ē = y − h − b (bias marginalised through P)
             z0 = y0 - ax - part[i, C_B + M_AX] - (dxx * m0 + dxyf * m1 + dxyr * m2)
             z1 = y1 - ay - part[i, C_B + M_AY] - (dyx * m0 + dyyf * m1 + dyyr * m2)
-            z2 = y2 - r - part[i, C_B + M_YAW_RATE]
-            v0 = i00 * z0 + i01 * z1
-            v1 = i01 * z0 + i11 * z1
-            maha = z0 * v0 + z1 * v1 + z2 * z2 * (det * inv_all)
+            v0 = i00 * z0 + i01 * z1 + i02 * z2
+            v1 = i01 * z0 + i11 * z1 + i12 * z2
+            v2 = i02 * z0 + i12 * z1 + i22 * z2
+            maha = z0 * v0 + z1 * v1 + z2 * v2
             # weight, eq. (36): St(z; 0, Λ̃_ē, ν̃) up to a factor common to all particles
             lw = logw[i] - 0.5 * math.log(det_all) - half_dof_c * math.log(1.0 + maha * inv_dof)
             if not lw > -math.inf:      # NaN (indefinite scale) drops the particle
@@ -561,20 +606,26 @@ def alg1_kernel(y: np.ndarray, u: np.ndarray, active: np.ndarray, bias_on: np.nd
             logw[i] = lw
             top = max(top, lw)
             # Theorem 1, eq. (40)–(41): S_w dᵀ = c1 (d Λ)ᵀ
-            mc0 = m0 + c1 * (a0 * v0 + b0 * v1)
-            mc1 = m1 + c1 * (a1 * v0 + b1 * v1)
-            mc2 = m2 + c1 * (a2 * v0 + b2 * v1)
+            mc0 = m0 + c1 * (a0 * v0 + b0 * v1 + cc0 * v2)
+            mc1 = m1 + c1 * (a1 * v0 + b1 * v1 + cc1 * v2)
+            mc2 = m2 + c1 * (a2 * v0 + b2 * v1 + cc2 * v2)
             # (d Λ)ᵀ Λ̃⁻¹ columns
-            t00 = a0 * i00 + b0 * i01
-            t01 = a0 * i01 + b0 * i11
-            t10 = a1 * i00 + b1 * i01
-            t11 = a1 * i01 + b1 * i11
-            t20 = a2 * i00 + b2 * i01
-            t21 = a2 * i01 + b2 * i11
+            t00 = a0 * i00 + b0 * i01 + cc0 * i02
+            t01 = a0 * i01 + b0 * i11 + cc0 * i12
+            t02 = a0 * i02 + b0 * i12 + cc0 * i22
+            t10 = a1 * i00 + b1 * i01 + cc1 * i02
+            t11 = a1 * i01 + b1 * i11 + cc1 * i12
+            t12 = a1 * i02 + b1 * i12 + cc1 * i22
+            t20 = a2 * i00 + b2 * i01 + cc2 * i02
+            t21 = a2 * i01 + b2 * i11 + cc2 * i12
+            t22 = a2 * i02 + b2 * i12 + cc2 * i22
             c00, c10, c20, c11, c21, c22 = chol3(
-                l00 - c1 * (t00 * a0 + t01 * b0), l01 - c1 * (t00 * a1 + t01 * b1),
-                l02 - c1 * (t00 * a2 + t01 * b2), l11 - c1 * (t10 * a1 + t11 * b1),
-                l12 - c1 * (t10 * a2 + t11 * b2), l22 - c1 * (t20 * a2 + t21 * b2))
+                l00 - c1 * (t00 * a0 + t01 * b0 + t02 * cc0),
+                l01 - c1 * (t00 * a1 + t01 * b1 + t02 * cc1),
+                l02 - c1 * (t00 * a2 + t01 * b2 + t02 * cc2),
+                l11 - c1 * (t10 * a1 + t11 * b1 + t12 * cc1),
+                l12 - c1 * (t10 * a2 + t11 * b2 + t12 * cc2),
+                l22 - c1 * (t20 * a2 + t21 * b2 + t22 * cc2))
             n0 = nrm[i, D_W]
             n1 = nrm[i, D_W + 1]
             n2 = nrm[i, D_W + 2]
@@ -613,7 +664,17 @@ def alg1_kernel(y: np.ndarray, u: np.ndarray, active: np.ndarray, bias_on: np.nd
             dm2 = mp2 - m2
             part[i, C_EB] = z0 - (dxx * dm0 + dxyf * dm1 + dxyr * dm2)
             part[i, C_EB + 1] = z1 - (dyx * dm0 + dyyf * dm1 + dyyr * dm2)
-            part[i, C_EB + 2] = z2
+            if look_k:
+                # eq. (30)'s gyro residual is that of the look-ahead row, taken before the draw
+                # has pulled ψ̇_{k+1} towards the gyro (after it, the cloud's ψ̇ follows
+                # gyro − b̂ and the residual no longer sees an error in b̂)
+                part[i, C_EB + 2] = z2 - (dr0 * dm0 + dr1 * dm1 + dr2 * dm2)
+                dzr = dr0 * zw0 + dr1 * zw1 + dr2 * zw2
+                part[i, C_SB + PRR] = inv_c_post * (
+                    cc0 * dr0 + cc1 * dr1 + cc2 * dr2 + c_upd * dzr * dzr) + me_r2
+            else:
+                part[i, C_EB + 2] = z2b
+                part[i, C_SB + PRR] = 0.0
             dz0 = dxx * zw0 + dxyf * zw1 + dxyr * zw2
             dz1 = dyx * zw0 + dyyf * zw1 + dyyr * zw2
             part[i, C_SB + PXX] = inv_c_post * (g00 + c_upd * dz0 * dz0)
