@@ -69,10 +69,8 @@ from vestim.estimators.health import (
     health_params,
     imu_health_kernel,
     imu_health_params,
-    imu_health_step,
     new_imu_state,
     wheel_health_kernel,
-    wheel_health_step,
 )
 from vestim.estimators.health import new_state as new_health_state
 from vestim.estimators.uncertainty import new_state as new_uncertainty_state
@@ -172,7 +170,7 @@ class Pipeline:
         self._rows: tuple[rows_kernel.Params, rows_kernel.State] | None = None
         self._rows_fn: Callable[..., None] | None = None
         self._stepper: rows_kernel.Stepper | None = None  # the trees, held by compiled code
-        self._step_fn: Callable[..., None] | None = None  # step_rows' entry point
+        self._step_fn: Callable[..., None] | None = None  # step_sample's entry point
         self._rows_names: tuple[str, ...] = ()  # the output order the trees write
         self._x1 = np.empty((1, rows_kernel.N_X))  # step()'s input row and output column
         self._y1 = np.empty((rows_kernel.N_ROW, 1))
@@ -194,17 +192,9 @@ class Pipeline:
         self._imu_prm = imu_health_params(self.config.imu_health, b.wheel_radius, b.track_f,
                                           b.track_r, b.lf)
         self._imu_state = new_imu_state()
-        # step()'s one-sample buffers: wheel speeds, road-wheel angles, outputs, health rows
-        self._imu_buf = (np.empty(4), np.zeros(4), np.empty(3), np.empty((1, 3)))
-        self._chunk_imu: np.ndarray | None = None  # IMU health rows of the block (run, step)
         self._unc_prm = uncertainty_params(vehicle, self.config.uncertainty)
         self._validity_prm = validity_params(self.config.validity)
         self._unc_state = new_uncertainty_state()
-        self._health_buf = (np.empty(4), np.empty((1, 4)), np.empty((1, 4)))
-        # step()'s compiled entry points (wheel health, IMU health) for these types
-        self._step_calls: tuple[Callable[..., None], ...] | None = None
-        # step()'s health rows of the sample (None: that health stage did not run)
-        self._chunk_health: np.ndarray | None = None
         self._layout: _Layout | None = None  # step()'s channels, checked once per set
 
     def reset(self) -> None:
@@ -316,70 +306,6 @@ class Pipeline:
         self.rows_estimated += n
         return pd.DataFrame(block.T, columns=list(names), copy=False)
 
-    def _calls(self) -> tuple[Callable[..., None], ...]:
-        """:meth:`step`'s compiled per-sample health calls (:func:`wheel_health_step`,
-        :func:`imu_health_step`) as entry points for the Numba types of this pipeline's
-        params, states and buffers, made once: a call then skips the dispatcher's typing of
-        each NamedTuple argument (several µs a call). They are only called with those objects
-        (a reset state is a new one of the same type)."""
-        if self._step_calls is None:
-            w, out, health = self._health_buf
-            wi, delta, out3, health3 = self._imu_buf
-            wheel = _compiled(wheel_health_step, self._health_prm, self._health_state, 0.0, w,
-                              out[0], health[0])
-            imu = _compiled(imu_health_step, self._imu_prm, self._imu_state, 0.0, 0.0, 0.0,
-                            0.0, wi, delta, out3, health3[0])
-            self._step_calls = (wheel, imu)
-        return self._step_calls
-
-    def _wheel_health(self, sample: Mapping[str, float]) -> Mapping[str, float]:
-        """:mod:`vestim.estimators.health` on one sample (the step and state of run())."""
-        w, out, health = self._health_buf
-        try:
-            w[0], w[1] = float(sample["omega_fl"]), float(sample["omega_fr"])
-            w[2], w[3] = float(sample["omega_rl"]), float(sample["omega_rr"])
-        except KeyError:  # no wheel speeds: nothing to check
-            self._chunk_health = None
-            return sample
-        self._calls()[0](self._health_prm, self._health_state, float(sample["t"]), w, out[0],
-                         health[0])
-        self._chunk_health = health
-        h = health[0].tolist()
-        bad = h[0] + h[1] + h[2] + h[3] < 4.0
-        self._held_now = self._held_now or bad
-        if not bad:
-            return sample
-        fixed = dict(sample)
-        fixed.update(zip(_OMEGA_KEYS, out[0].tolist(), strict=True))
-        return fixed
-
-    def _imu_health(self, sample: Mapping[str, float]) -> Mapping[str, float]:
-        """:mod:`vestim.estimators.health.imu` on one sample (the step and state of run(),
-        after the wheel health and the calibration, as there)."""
-        w, delta, out, health = self._imu_buf
-        get = sample.get
-        w[0], w[1] = float(get("omega_fl", np.nan)), float(get("omega_fr", np.nan))
-        w[2], w[3] = float(get("omega_rl", np.nan)), float(get("omega_rr", np.nan))
-        if "delta_fl" in sample and "delta_fr" in sample:
-            delta[0], delta[1] = float(sample["delta_fl"]), float(sample["delta_fr"])
-        else:
-            d = (float(sample["delta"]) if "delta" in sample else
-                 float(get("steering_wheel_angle", 0.0)) / self.vehicle.body.steering_ratio)
-            delta[0] = delta[1] = d
-        self._calls()[1](self._imu_prm, self._imu_state, float(sample["t"]),
-                         float(get("ax", np.nan)), float(get("ay", np.nan)),
-                         float(get("yaw_rate", np.nan)), w, delta, out, health[0])
-        self._chunk_imu = health
-        h = health[0].tolist()
-        if min(h) == 1.0:
-            return sample
-        self._held_now = True
-        fixed = dict(sample)
-        for key, value in zip(("ax", "ay", "yaw_rate"), out.tolist(), strict=True):
-            if key in fixed:
-                fixed[key] = value
-        return fixed
-
     def _hold_gaps(self, sample: Mapping[str, float]) -> Mapping[str, float]:
         """:meth:`step`'s guard against dropped values (see there)."""
         t = float(sample.get("t", np.nan))
@@ -392,7 +318,7 @@ class Pipeline:
         except TypeError:
             clean = False
         if clean:
-            self._last_good = (t, dict(sample))  # a copy: a live loop may reuse its dict
+            self._last_good = (t, sample)  # validate_sample's own copy, never changed after
             self._held_now = False
             return sample
         fixed: dict[str, float] | None = None
@@ -461,60 +387,57 @@ class Pipeline:
         health_state, imu_state = new_health_state(), new_imu_state()
         names: list[str] = []
         t_last, done = -math.inf, 0
-        try:
-            for log in pieces:
-                check_structure(log, source="Pipeline.run input", first_row=done)
-                if done == 0:  # the log's own declaration, else the configuration's
-                    kind = str(log.attrs.get("accelerometer",
-                                             self.config.force_params.accelerometer))
-                    try:
-                        self.force.set_accelerometer(kind)
-                    except ValueError as exc:
-                        raise LogFormatError(f"log metadata {exc} (what ax, ay, az hold)") from None
-                log = corrected_log(log, self.vehicle.calibration, wheel_radius=b.wheel_radius,
-                                    steering_ratio=b.steering_ratio)
-                u = inputs_from_log(log, self.vehicle)
-                n = u.t.shape[0]
-                if not u.t[0] > t_last:
-                    raise LogFormatError(
-                        f"Pipeline.run input: column 't' is not strictly increasing at row {done}"
-                        f" (t = {u.t[0]!r} s after t = {t_last!r} s); give the pieces in order")
-                # the first sample after each gap (and the piece's first, after one between
-                # pieces): the filters and the wheel health start again there
-                after = np.flatnonzero(np.diff(np.concatenate(([t_last], u.t))) > GAP_S)
-                restarts = [int(i) for i in after if t_last > -math.inf or i > 0]
-                self.gaps += [(float(t_last if i == 0 else u.t[i - 1]), float(u.t[i]))
-                              for i in restarts]
-                cuts = [0, *(i for i in restarts if i > 0), n]
-                omega, health = np.empty_like(u.omega), np.empty_like(u.omega)
-                imu = np.empty((3, n))  # a_x, a_y, yaw rate with the faulty readings replaced
-                imu_health = np.empty((n, 3))
-                for s_, e in itertools.pairwise(cuts):
-                    if s_ in restarts:
-                        health_state, imu_state = new_health_state(), new_imu_state()
-                    wheel_health_kernel(self._health_prm, health_state, u.t[s_:e],
-                                        np.ascontiguousarray(u.omega[s_:e]), omega[s_:e],
-                                        health[s_:e])
-                    imu_health_kernel(self._imu_prm, imu_state, u.t[s_:e], u.ax[s_:e],
-                                      u.ay[s_:e], u.yaw_rate[s_:e], omega[s_:e],
-                                      np.ascontiguousarray(u.delta[s_:e]), imu[0, s_:e],
-                                      imu[1, s_:e], imu[2, s_:e], imu_health[s_:e])
-                u = replace(u, omega=omega, ax=imu[0], ay=imu[1], yaw_rate=imu[2])
-                faulty = np.any(health == 0.0, axis=1) | np.any(imu_health == 0.0, axis=1)
-                spans = [(a, min(a + chunk, e)) for s_, e in itertools.pairwise(cuts)
-                         for a in range(s_, max(e, s_ + 1), chunk)]
+        for log in pieces:
+            check_structure(log, source="Pipeline.run input", first_row=done)
+            if done == 0:  # the log's own declaration, else the configuration's
+                kind = str(log.attrs.get("accelerometer",
+                                         self.config.force_params.accelerometer))
+                try:
+                    self.force.set_accelerometer(kind)
+                except ValueError as exc:
+                    raise LogFormatError(f"log metadata {exc} (what ax, ay, az hold)") from None
+            log = corrected_log(log, self.vehicle.calibration, wheel_radius=b.wheel_radius,
+                                steering_ratio=b.steering_ratio)
+            u = inputs_from_log(log, self.vehicle)
+            n = u.t.shape[0]
+            if not u.t[0] > t_last:
+                raise LogFormatError(
+                    f"Pipeline.run input: column 't' is not strictly increasing at row {done}"
+                    f" (t = {u.t[0]!r} s after t = {t_last!r} s); give the pieces in order")
+            # the first sample after each gap (and the piece's first, after one between
+            # pieces): the filters and the wheel health start again there
+            after = np.flatnonzero(np.diff(np.concatenate(([t_last], u.t))) > GAP_S)
+            restarts = [int(i) for i in after if t_last > -math.inf or i > 0]
+            self.gaps += [(float(t_last if i == 0 else u.t[i - 1]), float(u.t[i]))
+                          for i in restarts]
+            cuts = [0, *(i for i in restarts if i > 0), n]
+            omega, health = np.empty_like(u.omega), np.empty_like(u.omega)
+            imu = np.empty((3, n))  # a_x, a_y, yaw rate with the faulty readings replaced
+            imu_health = np.empty((n, 3))
+            for s_, e in itertools.pairwise(cuts):
+                if s_ in restarts:
+                    health_state, imu_state = new_health_state(), new_imu_state()
+                wheel_health_kernel(self._health_prm, health_state, u.t[s_:e],
+                                    np.ascontiguousarray(u.omega[s_:e]), omega[s_:e],
+                                    health[s_:e])
+                imu_health_kernel(self._imu_prm, imu_state, u.t[s_:e], u.ax[s_:e],
+                                  u.ay[s_:e], u.yaw_rate[s_:e], omega[s_:e],
+                                  np.ascontiguousarray(u.delta[s_:e]), imu[0, s_:e],
+                                  imu[1, s_:e], imu[2, s_:e], imu_health[s_:e])
+            u = replace(u, omega=omega, ax=imu[0], ay=imu[1], yaw_rate=imu[2])
+            faulty = np.any(health == 0.0, axis=1) | np.any(imu_health == 0.0, axis=1)
+            spans = [(a, min(a + chunk, e)) for s_, e in itertools.pairwise(cuts)
+                     for a in range(s_, max(e, s_ + 1), chunk)]
 
-                def on_span(stop: int, done: int = done) -> None:
-                    if progress is not None and total:
-                        progress(min((done + stop) / total, 1.0))
+            def on_span(stop: int, done: int = done) -> None:
+                if progress is not None and total:
+                    progress(min((done + stop) / total, 1.0))
 
-                frame = self._run_rows(u, faulty, health, imu_health, spans, restarts,
-                                       tuple(names) or self._columns(u.omega_measured), on_span)
-                names = list(frame.columns)
-                t_last, done = float(u.t[-1]), done + n
-                yield frame
-        finally:
-            self._chunk_health = self._chunk_imu = None
+            frame = self._run_rows(u, faulty, health, imu_health, spans, restarts,
+                                   tuple(names) or self._columns(u.omega_measured), on_span)
+            names = list(frame.columns)
+            t_last, done = float(u.t[-1]), done + n
+            yield frame
 
     def step(self, sample: Mapping[str, float]) -> dict[str, float]:
         """Advance by one sample (mapping of the log's column names); return that row.
@@ -539,14 +462,13 @@ class Pipeline:
             self.reset()  # as run() does after a gap
             self.gaps.append(gap)
         sample = self._hold_gaps(sample)
-        sample = self._wheel_health(sample)
         cal = self.vehicle.calibration
-        if cal is not None and cal.groups:
+        if cal is not None and cal.groups:  # before the health stages, as in run()
             b = self.vehicle.body
             cols = {k: np.array([float(v)]) for k, v in sample.items()}
             correct_columns(cols, cal, wheel_radius=b.wheel_radius, steering_ratio=b.steering_ratio)
             sample = {k: float(v[0]) for k, v in cols.items()}
-        return self._row_step(self._imu_health(sample))
+        return self._row_step(sample)
 
     def _trees(self, names: tuple[str, ...], sensors: rows_kernel.Sensors) -> None:
         """Make :func:`~vestim.pipeline.rows.pipeline_rows`' parameter and state trees once
@@ -629,19 +551,16 @@ class Pipeline:
         x[rows_kernel.X_GNSS] = float(get("gnss_speed", nan))
         x[rows_kernel.X_VSPEED] = float(get("vehicle_speed", nan))
         x[rows_kernel.X_HELD] = 1.0 if self._held_now else 0.0
-        x[rows_kernel.X_HEALTH_OMEGA:rows_kernel.X_HEALTH_IMU] = (
-            _ONES if self._chunk_health is None else self._health_buf[2][0])
-        x[rows_kernel.X_HEALTH_IMU:rows_kernel.X_GNSS] = (
-            _ONES[:3] if self._chunk_imu is None else self._imu_buf[3][0])
         columns = layout.columns
         self._trees(columns, sensors)
         assert self._rows is not None
         if self._stepper is None:
-            self._stepper = rows_kernel.Stepper(*self._rows)
+            self._stepper = rows_kernel.new_stepper(*self._rows, rows_kernel.new_health_buffers(
+                self._health_prm, self._health_state, self._imu_prm, self._imu_state))
             if self._step_fn is None:  # the entry point for these types, typed once
                 with _cache.compile_notice(_LOG.warning):  # a first run compiles ~1 min
-                    self._step_fn = _compiled(rows_kernel.step_rows, self._stepper, self._x1,
-                                              self._y1)
+                    self._step_fn = _compiled(rows_kernel.step_sample, self._stepper,
+                                              self._x1, self._y1)
         step_fn = self._step_fn
         assert step_fn is not None
         step_fn(self._stepper, self._x1, self._y1)
@@ -664,9 +583,6 @@ _TORQUES = tuple(f"torque_{c}" for c in CORNERS)
 
 _SENSORS = {key: rows_kernel.Sensors(*key) for key in itertools.product((False, True), repeat=5)}
 """The :class:`~vestim.pipeline.rows.Sensors` of a sample, made once."""
-
-_ONES = np.ones(4)
-"""The health of a stage that did not run in step() (1.0: healthy)."""
 
 _OMEGA_KEYS = tuple(f"omega_{c}" for c in CORNERS)
 

@@ -62,6 +62,14 @@ from vestim.estimators.force.normal import (
 from vestim.estimators.friction import FrictionKernelParams, FrictionState, friction_step
 from vestim.estimators.fusion.axle import adaptive_axle_kernel, fixed_axle_kernel
 from vestim.estimators.fusion.opinion import opinion_kernel
+from vestim.estimators.health import (
+    HealthKernelParams,
+    HealthState,
+    ImuHealthKernelParams,
+    ImuHealthState,
+    imu_health_step,
+    wheel_health_step,
+)
 from vestim.estimators.uncertainty import N_OUT as N_SIGMA
 from vestim.estimators.uncertainty import OUTPUT_NAMES as SIGMA_NAMES
 from vestim.estimators.uncertainty import (
@@ -830,23 +838,86 @@ class _StepperType(types.StructRef):
         return tuple((name, types.unliteral(typ)) for name, typ in fields)
 
 
+class Health(NamedTuple):
+    """The health stages' parameters and states (:mod:`vestim.estimators.health`) and
+    :func:`step_sample`'s buffers for them: ``w`` (4,) the wheel speeds, ``delta`` (4,) the
+    road-wheel angles, ``out`` (4,) the readings with the faulty ones replaced, ``health``
+    (4,) their health."""
+
+    wheel: HealthKernelParams
+    wheel_state: HealthState
+    imu: ImuHealthKernelParams
+    imu_state: ImuHealthState
+    w: np.ndarray
+    delta: np.ndarray
+    out: np.ndarray
+    health: np.ndarray
+
+
+def new_health_buffers(wheel: HealthKernelParams, wheel_state: HealthState,
+                       imu: ImuHealthKernelParams, imu_state: ImuHealthState) -> Health:
+    """:class:`Health` for these parameters and states (the buffers new)."""
+    return Health(wheel, wheel_state, imu, imu_state, np.empty(4), np.zeros(4), np.empty(4),
+                  np.empty(4))
+
+
 class Stepper(structref.StructRefProxy):
-    """The two trees held by compiled code (``Stepper(P, S)``): a call of :func:`step_rows`
+    """The trees held by compiled code (``Stepper(P, S, H)``: the pipeline's parameters
+    and state and the health stages' :class:`Health`): a call of :func:`step_sample`
     unboxes one pointer instead of the ≈ 150 arrays of the trees (≈ 20 µs a call). It
     shares the trees' arrays."""
 
     P: Params  # the fields, for the type checker (define_proxy makes the properties)
     S: State
+    H: Health
 
 
-structref.define_proxy(Stepper, _StepperType, ["P", "S"])
+structref.define_proxy(Stepper, _StepperType, ["P", "S", "H"])
 
 
 @njit(**_JIT)
-def step_rows(h: Stepper, X: np.ndarray, Y: np.ndarray) -> None:
-    """:func:`pipeline_rows` over the rows of ``X`` (into Y's columns 0 …) with the trees of
-    ``h``: what :meth:`Pipeline.step` calls for its one row."""
-    pipeline_rows(h.P, h.S, X, Y, 0, X.shape[0])
+def new_stepper(P: Params, S: State, H: Health) -> Stepper:
+    """``Stepper(P, S, H)`` made by compiled code that is cached: StructRefProxy's own
+    constructor is compiled anew in every process (≈ 6 s at a process's first step())."""
+    return Stepper(P, S, H)
+
+
+@njit(**_JIT)
+def step_sample(h: Stepper, X: np.ndarray, Y: np.ndarray) -> None:
+    """One live sample, ``X`` (1, :data:`N_X`) with its channels as measured, through the
+    health stages (the per-sample steps of the kernels :meth:`Pipeline.run` calls over a
+    piece: the faulty readings replaced in ``X``, their health into its health columns,
+    ``X_HELD`` set where one was replaced) and then :func:`pipeline_rows` into Y's column
+    0: what :meth:`Pipeline.step` calls. A channel the Sensors do not measure is NaN in
+    ``X`` (the wheel speeds, ``ax``)."""
+    H = h.H
+    x = X[0]
+    t = x[X_T]
+    held = x[X_HELD] != 0.0
+    w, out, health = H.w, H.out, H.health
+    for c in range(4):
+        w[c] = x[X_OMEGA + c]
+        x[X_HEALTH_OMEGA + c] = 1.0
+    if h.P.sensors.omega:
+        wheel_health_step(H.wheel, H.wheel_state, t, w, out, health)
+        if health[0] + health[1] + health[2] + health[3] < 4.0:
+            held = True
+            for c in range(4):
+                w[c] = x[X_OMEGA + c] = out[c]
+        for c in range(4):
+            x[X_HEALTH_OMEGA + c] = health[c]
+    H.delta[0], H.delta[1] = x[X_DELTA], x[X_DELTA + 1]
+    imu_health_step(H.imu, H.imu_state, t, x[X_AX], x[X_AY], x[X_R], w, H.delta, out,
+                    health)
+    if min(health[0], health[1], health[2]) != 1.0:
+        held = True
+        if h.P.sensors.ax:
+            x[X_AX] = out[0]
+        x[X_AY], x[X_R] = out[1], out[2]
+    for c in range(3):
+        x[X_HEALTH_IMU + c] = health[c]
+    x[X_HELD] = 1.0 if held else 0.0
+    pipeline_rows(h.P, h.S, X, Y, 0, 1)
 
 
 def columns(names: tuple[str, ...]) -> np.ndarray:
