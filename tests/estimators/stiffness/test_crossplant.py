@@ -23,7 +23,7 @@ pytestmark = pytest.mark.skipif(not (DATA / "x12_stiffness_friction_step_fwd.par
                                 reason=f"cross-plant data not found at {DATA}")
 
 
-def _score(name: str, vehicle: str, seed: int = 0) -> dict:
+def _score(name: str, vehicle: str, seed: int = 0, method: str = "pf") -> dict:
     sys.path.insert(0, str(CROSSPLANT))
     try:
         import stiffness_score  # the project's independent scorer, next to the data
@@ -31,7 +31,7 @@ def _score(name: str, vehicle: str, seed: int = 0) -> dict:
         sys.path.pop(0)
     truth = pd.read_parquet(DATA / f"{name}.parquet")
     log = truth[[c for c in truth.columns if not c.startswith("ref_")]]
-    est = estimate_stiffness(log, load_vehicle(DATA / vehicle), seed=seed)
+    est = estimate_stiffness(log, load_vehicle(DATA / vehicle), seed=seed, method=method)
     res = stiffness_score.score_stiffness(est, truth, 30.0, [(20.0, 30.0), (40.0, 60.0)], 0.10)
     t = est["t"].to_numpy()
     before, after = (t >= 20) & (t < 30), (t >= 40) & (t < 60)
@@ -167,25 +167,6 @@ def test_full_verdict_x11(x11):
         assert r["reconverge_stays_s"] is not None and r["reconverge_stays_s"] <= 5.0
 
 
-def _score_ekf(name: str, vehicle: str) -> dict:
-    sys.path.insert(0, str(CROSSPLANT))
-    try:
-        import stiffness_score
-    finally:
-        sys.path.pop(0)
-    truth = pd.read_parquet(DATA / f"{name}.parquet")
-    log = truth[[c for c in truth.columns if not c.startswith("ref_")]]
-    est = estimate_stiffness(log, load_vehicle(DATA / vehicle), method="ekf")
-    res = stiffness_score.score_stiffness(est, truth, 30.0, [(20.0, 30.0), (40.0, 60.0)], 0.10)
-    t = est["t"].to_numpy()
-    before, after = (t >= 20) & (t < 30), (t >= 40) & (t < 60)
-    for ch, r in res["channels"].items():
-        v = est[ch].to_numpy()
-        r["ratio"] = v[after].mean() / v[before].mean()
-        r["truth_ratio"] = r["windows"]["40-60"]["truth_mean"] / r["windows"]["20-30"]["truth_mean"]
-    return res["channels"]
-
-
 def test_ekf_meets_the_step_targets_on_x11():
     """The augmented-state EKF (002 Sec. V, the baseline of the verdict in
     docs/results_stiffness.md) on x11: every ratio within ±0.05 of the truth (measured 0.699 /
@@ -194,7 +175,7 @@ def test_ekf_meets_the_step_targets_on_x11():
     5 s of the change (first re-entry 0.1 / 1.1 / 1.7 s; Algorithm 1 as printed: cy_r 8.4–8.8 s
     on seeds 0 and 1). Deterministic (no random draws). The gyro corrects the stiffness states through
     their covariance with ψ̇ at every step, which Algorithm 1's draw of w_k from y_k does not."""
-    res = _score_ekf("x11_stiffness_step_rwd", "vehicle3.toml")
+    res = _score("x11_stiffness_step_rwd", "vehicle3.toml", method="ekf")
     for ch, r in res.items():
         assert abs(r["ratio"] - r["truth_ratio"]) <= 0.05, (ch, r["ratio"], r["truth_ratio"])
         for w in r["windows"].values():
@@ -209,7 +190,7 @@ def test_ekf_step_ratios_and_reentry_on_x12():
     after the change is 6.2 % off against a 5.2 % band (Algorithm 1 with the look-ahead and
     the roll compensation: 5.8–9.2 % over seeds 0–4), so that window is checked as the known
     miss it is (docs/results_stiffness.md, verdict)."""
-    res = _score_ekf("x12_stiffness_friction_step_fwd", "vehicle1.toml")
+    res = _score("x12_stiffness_friction_step_fwd", "vehicle1.toml", method="ekf")
     for ch, r in res.items():
         assert abs(r["ratio"] - r["truth_ratio"]) <= 0.05, (ch, r["ratio"], r["truth_ratio"])
         assert r["reconverge_enters_s"] is not None and r["reconverge_enters_s"] <= 5.0, \

@@ -419,28 +419,25 @@ def load_specific_force(prm: LowpassParams, enabled: bool, state: np.ndarray, t:
     measurements.
 
     Each component goes through :func:`~vestim.filters.lowpass.noise_adaptive_lowpass`
-    (state rows 0–2 of ``state`` (4, N_LOWPASS)), or is copied where not ``enabled``: the
+    (state rows 0–2 of ``state`` (4, N_LOWPASS)), or passes through where not ``enabled``: the
     normal loads take these (a body-mounted IMU's 10–30 Hz
     vibration of up to 4 m/s² is no tire load; the campaign's F_z was 13 of 48 times worse
-    than the static loads with it). The fourth array (n, 3) holds the measured noise
-    variance per sample of f_x, f_y ((m/s²)²) and of the yaw gyro ((rad/s)², row 3 of
-    ``state``) for the lateral UKF, which takes the unfiltered force (a delay there costs
+    than the static loads with it). The fourth array (4, n) holds the measured noise
+    variance per sample of f_x, f_y, f_z ((m/s²)²) and of the yaw gyro ((rad/s)², row 3 of
+    ``state``), for the lateral UKF, which takes the unfiltered force (a delay there costs
     F_y in proportion to the steering frequency: 1.3–2.3 points on the crossplant sine
     steers at 8 Hz) and weighs its noise with these (0 where the filter is off: the
     configured values alone). The chassis torques (a torque step's m a_x: our simulator's
     AWD braking without torques lost 1.5 points of F_x to the delay) and the velocity
     filters take the unfiltered force too."""
     n = t.shape[0]
-    out = (f_x.copy(), f_y.copy(), f_z.copy())
-    var = np.zeros((n, 3))
-    if enabled:
-        v = np.empty(n)
-        for j, f in enumerate((f_x, f_y, f_z)):
-            noise_adaptive_lowpass(prm, state[j], t, f, out[j], v)
-            if j < 2:
-                var[:, j] = v
-        noise_variance(prm, state[3], t, r, v)
-        var[:, 2] = v
+    var = np.zeros((4, n))
+    if not enabled:
+        return f_x, f_y, f_z, var
+    out = np.empty((3, n))
+    for j, f in enumerate((f_x, f_y, f_z)):
+        noise_adaptive_lowpass(prm, state[j], t, f, out[j], var[j])
+    noise_variance(prm, state[3], t, r, var[3])
     return out[0], out[1], out[2], var
 
 

@@ -233,8 +233,8 @@ def lateral_kernel(p: LateralKernelParams, s: LateralState, t: np.ndarray, fx: n
     Inputs per sample: fx (n, 4) tire-frame longitudinal forces, delta (n, 4)
     road-wheel angles (rear 0), weights (n, 4) lateral-capacity weights of
     :func:`split_weights`, f_x, f_y road-frame
-    specific force (m/s²), yaw_rate (rad/s), noise (n, 3) the measured noise variances of
-    f_x, f_y ((m/s²)²) and the yaw rate ((rad/s)²), which raise the measurement noise above
+    specific force (m/s²), yaw_rate (rad/s), noise (4, n) the measured noise variances of
+    f_x, f_y, f_z ((m/s²)²) and the yaw rate ((rad/s)²; f_z's unused), which raise the measurement noise above
     ``r_diag`` where they exceed it (the log's own sensors, e.g. a vibrating IMU or a gyro
     noisier than the configured one), drag (N), fz (n, 4) normal loads (N), speed
     (n,) a wheel-speed reference of v_x (m/s). ``q`` from :func:`lateral_q`.
@@ -334,9 +334,9 @@ def lateral_kernel(p: LateralKernelParams, s: LateralState, t: np.ndarray, fx: n
                     for j in range(N_X):
                         acc += H[r, j] * Pxy[j, c2]
                     Pyy[r, c2] = acc
-            Pyy[0, 0] += max(r_diag[0], mass * mass * noise[k, 0])
-            Pyy[1, 1] += max(r_diag[1], mass * mass * noise[k, 1])
-            Pyy[2, 2] += max(r_diag[2], noise[k, 2])
+            Pyy[0, 0] += max(r_diag[0], mass * mass * noise[0, k])
+            Pyy[1, 1] += max(r_diag[1], mass * mass * noise[1, k])
+            Pyy[2, 2] += max(r_diag[2], noise[3, k])
             Pyy[3, 3] += r_diag[3]
             y[0] = mass * f_x[k] + drag[k] - ym[0]
             y[1] = mass * (f_y[k] - state[13]) - ym[1]

@@ -210,6 +210,14 @@ def chol3(a00: float, a01: float, a02: float, a11: float, a12: float,
 
 
 @njit(**_JIT)
+def sym3_mv(s00: float, s01: float, s02: float, s11: float, s12: float, s22: float,
+            x0: float, x1: float, x2: float) -> tuple[float, float, float]:
+    """S x for a symmetric 3 × 3 S given by its upper triangle."""
+    return (s00 * x0 + s01 * x1 + s02 * x2, s01 * x0 + s11 * x1 + s12 * x2,
+            s02 * x0 + s12 * x1 + s22 * x2)
+
+
+@njit(**_JIT)
 def bias_kalman(b0: float, b1: float, b2: float, p00: float, p01: float, p11: float, prr: float,
                 e0: float, e1: float, e2: float, s00: float, s01: float, s11: float,
                 r00: float, r01: float, r11: float, rrr: float, u00: float, u01: float,
@@ -543,12 +551,8 @@ def alg1_kernel(y: np.ndarray, u: np.ndarray, active: np.ndarray, bias_on: np.nd
             l12 = part[i, C_LAM + L12]
             l22 = part[i, C_LAM + L22]
             # rows of d Λ (accelerometer rows of d)
-            a0 = dxx * l00 + dxyf * l01 + dxyr * l02
-            a1 = dxx * l01 + dxyf * l11 + dxyr * l12
-            a2 = dxx * l02 + dxyf * l12 + dxyr * l22
-            b0 = dyx * l00 + dyyf * l01 + dyyr * l02
-            b1 = dyx * l01 + dyyf * l11 + dyyr * l12
-            b2 = dyx * l02 + dyyf * l12 + dyyr * l22
+            a0, a1, a2 = sym3_mv(l00, l01, l02, l11, l12, l22, dxx, dxyf, dxyr)
+            b0, b1, b2 = sym3_mv(l00, l01, l02, l11, l12, l22, dyx, dyyf, dyyr)
             m0 = part[i, C_MU + W_CX]
             m1 = part[i, C_MU + W_CYF]
             m2 = part[i, C_MU + W_CYR]
@@ -564,9 +568,7 @@ def alg1_kernel(y: np.ndarray, u: np.ndarray, active: np.ndarray, bias_on: np.nd
             else:
                 dr0 = dr1 = dr2 = 0.0
                 z2 = 0.0 if look else z2b
-            cc0 = dr0 * l00 + dr1 * l01 + dr2 * l02
-            cc1 = dr0 * l01 + dr1 * l11 + dr2 * l12
-            cc2 = dr0 * l02 + dr1 * l12 + dr2 * l22
+            cc0, cc1, cc2 = sym3_mv(l00, l01, l02, l11, l12, l22, dr0, dr1, dr2)
             # d Λ dᵀ
             g00 = a0 * dxx + a1 * dxyf + a2 * dxyr
             g01 = a0 * dyx + a1 * dyyf + a2 * dyyr
@@ -595,9 +597,7 @@ def alg1_kernel(y: np.ndarray, u: np.ndarray, active: np.ndarray, bias_on: np.nd
             # innovation z = ē − d μ̂ with ē = y − h − b (bias marginalised through P)
             z0 = y0 - ax - part[i, C_B + M_AX] - (dxx * m0 + dxyf * m1 + dxyr * m2)
             z1 = y1 - ay - part[i, C_B + M_AY] - (dyx * m0 + dyyf * m1 + dyyr * m2)
-            v0 = i00 * z0 + i01 * z1 + i02 * z2
-            v1 = i01 * z0 + i11 * z1 + i12 * z2
-            v2 = i02 * z0 + i12 * z1 + i22 * z2
+            v0, v1, v2 = sym3_mv(i00, i01, i02, i11, i12, i22, z0, z1, z2)
             maha = z0 * v0 + z1 * v1 + z2 * v2
             # weight, eq. (36): St(z; 0, Λ̃_ē, ν̃) up to a factor common to all particles
             lw = logw[i] - 0.5 * math.log(det_all) - half_dof_c * math.log(1.0 + maha * inv_dof)
@@ -610,15 +610,9 @@ def alg1_kernel(y: np.ndarray, u: np.ndarray, active: np.ndarray, bias_on: np.nd
             mc1 = m1 + c1 * (a1 * v0 + b1 * v1 + cc1 * v2)
             mc2 = m2 + c1 * (a2 * v0 + b2 * v1 + cc2 * v2)
             # (d Λ)ᵀ Λ̃⁻¹ columns
-            t00 = a0 * i00 + b0 * i01 + cc0 * i02
-            t01 = a0 * i01 + b0 * i11 + cc0 * i12
-            t02 = a0 * i02 + b0 * i12 + cc0 * i22
-            t10 = a1 * i00 + b1 * i01 + cc1 * i02
-            t11 = a1 * i01 + b1 * i11 + cc1 * i12
-            t12 = a1 * i02 + b1 * i12 + cc1 * i22
-            t20 = a2 * i00 + b2 * i01 + cc2 * i02
-            t21 = a2 * i01 + b2 * i11 + cc2 * i12
-            t22 = a2 * i02 + b2 * i12 + cc2 * i22
+            t00, t01, t02 = sym3_mv(i00, i01, i02, i11, i12, i22, a0, b0, cc0)
+            t10, t11, t12 = sym3_mv(i00, i01, i02, i11, i12, i22, a1, b1, cc1)
+            t20, t21, t22 = sym3_mv(i00, i01, i02, i11, i12, i22, a2, b2, cc2)
             c00, c10, c20, c11, c21, c22 = chol3(
                 l00 - c1 * (t00 * a0 + t01 * b0 + t02 * cc0),
                 l01 - c1 * (t00 * a1 + t01 * b1 + t02 * cc1),
