@@ -127,6 +127,8 @@ def main(argv: list[str] | None = None) -> int:
              if not a.only or c[1].startswith(tuple(a.only)) or c[0] in a.only]
     with ProcessPoolExecutor(a.jobs) as pool:
         results = list(pool.map(_one, cases))
+    scores = Path("/tmp/vestim-study") / a.tag / "scores.json"
+    scores.write_text(json.dumps({sid: res for _, sid, res in results}, indent=1, default=str))
     summary: dict[str, dict[str, list[float]]] = {}
     print(f"{'log':34s}" + "".join(f"{c:>10s}" for c in (*LAT, "fz", "fy")))
     for kind, sid, res in results:
