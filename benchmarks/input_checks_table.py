@@ -99,6 +99,11 @@ FURTHER: list[tuple[str, str, Inject, tuple[str, ...]]] = [
     ("steering-wheel angle in delta", "delta_fl, delta_fr × steering_ratio",
      _scaled(("delta_fl", "delta_fr"), lambda v: v.body.steering_ratio),
      ("x11_stiffness_step_rwd",)),
+    ("one wheel in mph", "omega_rl × 2.237·R (an mph column holds v = 2.237·R·ω)",
+     _scaled(("omega_rl",), lambda v: 2.237 * v.body.wheel_radius), ("x10_mixed_drive_fwd",)),
+    ("torques in kN·m", "torque_* × 0.001", _scaled(TORQUE, 1e-3), ("x10_mixed_drive_fwd",)),
+    ("torques in N·m declared kN·m", "torque_* × 1000", _scaled(TORQUE, 1e3),
+     ("x10_mixed_drive_fwd",)),
 ]
 
 
@@ -250,9 +255,9 @@ def build() -> str:
                             "AY_MIN", "YAW_MIN", "AY_MAX_YAW", "STEER_MIN", "SPREAD_BASE",
                             "LAT_NORMAL", "LAT_G", "SIGN_RATIO", "YAW_NORMAL", "STEER_LOW",
                             "STEER_HIGH", "LON_G", "LON_MAX_REL_SE", "LON_MIN_STEP",
-                            "TORQUE_MIN_STEP", "T_STAT", "ROLL_MAX", "ROLL_WINDOW_S",
+                            "TORQUE_MIN_STEP", "T_STAT", "TORQUE_SCALE", "ROLL_MAX", "ROLL_WINDOW_S",
                             "ROLL_MIN_STEP", "AZ_TOL", "AZ_NO_GRAVITY", "WHEEL_RATIO",
-                            "WHEEL_SPREAD", "SCALE_EVIDENCE", "GNSS_TOL", "KMH_MIN")),
+                            "WHEEL_ALONE", "WHEEL_SPREAD", "SCALE_EVIDENCE", "GNSS_TOL", "KMH_MIN")),
                       (vehicle_file, ("RADIUS_MAX", "LENGTH_MAX", "MASS_RANGE"))):
         for c in names:
             out.append(f"| `{mod.__name__.rsplit('.', 1)[-1]}.{c}` | {getattr(mod, c)} | "

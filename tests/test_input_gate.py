@@ -426,3 +426,36 @@ def test_an_overflowing_map_expression_names_the_entry(tmp_path: Path, expr: str
             "channels": {"omega_fl": {"sources": {"x": "w"}, "unit": "rad/s", "expr": expr}}}
     with pytest.raises(ChannelMapError, match=message):
         apply_channel_map(src, parse_channel_map(spec))
+
+
+# --- 8. unit mistakes the cross-channel checks used to pass ------------------------------------
+
+
+@pytest.mark.parametrize(("factor", "shown"), [(1e-3, "0.001026"), (1e3, "1026")])
+def test_torques_a_thousand_times_off_are_refused(factor: float, shown: str) -> None:
+    """Torques in kN·m read as N·m (×0.001) or N·m declared kN·m in a map (×1000: issue 30
+    measured F_x errors of 70 kN) kept the right sign, which was all the torque relation
+    checked. accel_brake's clean torques are 1.026 × m·R·a (the regression over its 20
+    accelerating 1 s windows), so the scaled ones read 1000 times that, far outside the
+    factor TORQUE_SCALE = 10 around 1 (clean logs 0.97–1.20)."""
+    torques = [f"torque_{c}" for c in ("fl", "fr", "rl", "rr")]
+    log = _log("accel_brake")
+    assert "torque" not in {n.check for n in gate(log, SUV).not_run}
+    scaled = log.assign(**{c: log[c] * factor for c in torques})
+    with pytest.raises(LogFormatError, match=rf"the wheel torques torque_fl, torque_fr, torque_rl, "
+                                             rf"torque_rr are {shown} × m·R·a .*"
+                                             r"(multiply|divide) them by 1000"):
+        gate(scaled, SUV)
+
+
+def test_one_wheel_in_mph_is_refused() -> None:
+    """One wheel speed in mph read as rad/s (issue 30: F_y 73 % off) is 2.237·R = 0.738 × its
+    true value on the 0.33 m SUV: a constant factor, but below WHEEL_RATIO = 2, so it passed.
+    It is refused as a wheel alone (its axle mate agrees with the other axle; clean logs
+    stay within 1.03, a spinning axle moves both mates)."""
+    log = _log()
+    mph = log.assign(omega_fr=log["omega_fr"] * 2.237 * SUV.body.wheel_radius)
+    with pytest.raises(LogFormatError, match=r"column 'omega_fr' is a constant 0.738 × the other "
+                                             r"wheel speeds, its axle mate's included.*mph"):
+        gate(mph, SUV)
+    gate(log, SUV)  # the clean log passes

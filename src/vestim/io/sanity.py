@@ -164,6 +164,12 @@ TORQUE_MIN_STEP = 0.5
 """m/s; least |R·Δω| over a 1 s window for the torque relation."""
 T_STAT = 5.0
 """|slope / standard error| a slope of the wrong sign must reach to be an error."""
+TORQUE_SCALE = 10.0
+"""The wheel torques' sum over m·R·a (positive, |t| ≥ T_STAT) beyond a factor 10 of 1 is an
+error: clean logs read 0.97–1.20 (crossplant x10–x12 1.06–1.08, the campaign's 14 logs with
+enough acceleration 0.97–1.20, sim:accel_brake 1.03; rolling resistance, drag and grade are
+the fit's intercept); kN·m read as N·m gives 0.001, N·m declared as kN·m 1000. Wheel
+speeds in m/s (R ≈ 0.3) move it only by 1/R ≈ 3, which the wheel checks name."""
 ROLL_MAX = 0.06
 """rad per m/s²; roll gradient above which ``roll_rate`` looks like deg/s. Road cars roll
 1–12°/g (0.002–0.021 rad per m/s²; the clean crossplant logs 0.011–0.016, vestim's simulator
@@ -182,6 +188,12 @@ WHEEL_RATIO = 2.0
 another unit (rpm 9.55, m/s 1/R ≈ 3); a spinning wheel varies, see WHEEL_SPREAD."""
 WHEEL_SPREAD = 0.1
 """Largest interquartile range of ln(ω_i / others) for a constant factor."""
+WHEEL_ALONE = 1.15
+"""A wheel a constant factor ≥ 1.15 away from the other three's median and from its axle
+mate alone is in another unit too (mph read as rad/s: 2.237·R = 0.74 at R = 0.33 m; km/h
+3.6·R = 1.19). Clean logs stay within 1.03 of the others where the axle mates agree (x07's
+turn 1.026, x04's locked wheel 0.947 with IQR 0.058, RAV4 1.002); a driven axle spinning
+together (x01's front wheels 1.12, IQR 0.03) is not one wheel alone."""
 SCALE_EVIDENCE = 0.5
 """A wheel-speed scale estimate e supports a wrong-unit factor c when ln e / ln c lies in
 [0.5, 2]: closer to c than to 1 on a log scale, and not beyond c by more than c is from 1.
@@ -670,12 +682,28 @@ def _wheels_each_other(s: _Signals, out: list[Finding]) -> bool:
             continue
         q25, med, q75 = np.quantile(lr, [0.25, 0.5, 0.75])
         factor = math.exp(float(med))
-        if abs(med) >= math.log(WHEEL_RATIO) and q75 - q25 <= WHEEL_SPREAD:
+        if q75 - q25 > WHEEL_SPREAD:
+            continue
+        if abs(med) >= math.log(WHEEL_RATIO):
             out.append(_err(
                 f"omega_{c}", f"column 'omega_{c}' is a constant {factor:.3g} × the other wheel "
                 "speeds: it is in another unit (rpm gives 9.55, m/s gives 1/R) or scaled "
                 "differently; convert it to rad/s like the others", factor, "wheels"))
+        elif abs(med) >= math.log(WHEEL_ALONE) and abs(_mate_ratio(w4, i)) >= math.log(WHEEL_ALONE):
+            out.append(_err(
+                f"omega_{c}", f"column 'omega_{c}' is a constant {factor:.3g} × the other wheel "
+                "speeds, its axle mate's included: it is in another unit (mph read as rad/s "
+                f"gives 2.237·R = {2.237 * s.R:.3g}, km/h 3.6·R = {3.6 * s.R:.3g}) or scaled "
+                "differently; convert it to rad/s like the others", factor, "wheels"))
     return True
+
+
+def _mate_ratio(w4: np.ndarray, i: int) -> float:
+    """Median ln |ω_i / ω_mate| of wheel i (index in CORNERS) against its axle mate."""
+    with np.errstate(invalid="ignore", divide="ignore"):
+        lr = np.log(np.abs(w4[:, i]) / np.abs(w4[:, i ^ 1]))
+    lr = lr[np.isfinite(lr)]
+    return float(np.median(lr)) if len(lr) else 0.0
 
 
 def _longitudinal(s: _Signals, out: list[Finding]) -> float | None:
@@ -965,6 +993,17 @@ def _torque(s: _Signals, out: list[Finding]) -> bool:
                         "torque_rr "
                         "(spec: net wheel torque, drive minus brake, positive driving)", total,
                         "torque"))
+        return True
+    if math.isfinite(total) and total > 0 and total / se >= T_STAT and not (
+            1 / TORQUE_SCALE <= total <= TORQUE_SCALE):
+        hint = ("kN·m read as N·m gives 0.001: multiply them by 1000" if total < 1
+                else "N·m declared as kN·m (or read in N·mm) gives 1000: divide them by 1000")
+        out.append(_err(", ".join(ch.TORQUES),
+                        f"the wheel torques {', '.join(ch.TORQUES)} are {total:.4g} × m·R·a "
+                        "(the torque the car's "
+                        "acceleration needs at the wheels; expected about 1, clean logs "
+                        f"0.97–1.20): they are in another unit ({hint}), or check mass and "
+                        "wheel_radius in the vehicle file", total, "torque"))
         return True
     for c in CORNERS:
         k, se_c = _robust_fit(x, mean_t[c])
