@@ -196,6 +196,12 @@ _N_GROUPS = len(VALIDITY_GROUPS)
 _R_HEALTH = _R_MU + 12 + 2 * _N_GROUPS
 _R_SIGMA = _R_HEALTH + 7
 _R_CONF = _R_SIGMA + N_SIGMA
+_R_UTIL = 3 + 4 * _PER_CORNER.index("mu_x")  # mu_x_fl … mu_x_rr, then mu_y_fl … mu_y_rr
+_S_FZ = SIGMA_NAMES.index("sigma_fz_fl")
+FZ_RESOLVED = 2.0
+"""A corner's F_z below this many of its σ_Fz is not resolved from zero (a wheel nearly
+lifted): its μ_x = F_x/F_z and μ_y = F_y/F_z are undefined there and written NaN. Campaign
+s1_014's rear right carried 302 N where the estimate read 2 N: F_x/F_z = 41.7."""
 N_ROW = _R_CONF + 4
 
 
@@ -823,6 +829,11 @@ def _post(p: PostParams, st: PostState, x: np.ndarray, t: np.ndarray, ax: np.nda
         for c in range(N_SIGMA):
             if col[_R_SIGMA + c] >= 0:
                 Y[col[_R_SIGMA + c], k] = sigma[c]
+        for c in range(4):
+            if fz_i[c] < FZ_RESOLVED * sigma[_S_FZ + c]:
+                for j in (_R_UTIL + c, _R_UTIL + 4 + c):
+                    if col[j] >= 0:
+                        Y[col[j], k] = np.nan
 
 
 def _corner_trees(pipe: Pipeline) -> tuple[CornerParams, CornerState]:
