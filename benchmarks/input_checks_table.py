@@ -124,6 +124,16 @@ def _speed_only(channel: str, scale: float = 1.0) -> Inject:
     return f
 
 
+def _pitched(deg: float) -> Inject:
+    """ax, az of an IMU whose x axis points ``deg`` below the car's x-y plane."""
+    def f(df: pd.DataFrame, veh: Vehicle) -> pd.DataFrame:
+        p = math.radians(deg)
+        ax, az = df["ax"].to_numpy(), df["az"].to_numpy()
+        return df.assign(ax=math.cos(p) * ax - math.sin(p) * az,
+                         az=math.sin(p) * ax + math.cos(p) * az)
+    return f
+
+
 def _with_speed(scale: float) -> Inject:
     def f(df: pd.DataFrame, veh: Vehicle) -> pd.DataFrame:
         return df.assign(vehicle_speed=scale * np.hypot(df["ref_vx"], df["ref_vy"]))
@@ -141,6 +151,10 @@ FURTHER += [
      _speed_only("gnss_speed", 3.6), ("x11_stiffness_step_rwd",)),
     ("vehicle_speed in km/h next to the wheel speeds", "vehicle_speed = 3.6·|v| added",
      _with_speed(3.6), ("x10_mixed_drive_fwd",)),
+    ("IMU mounted pitched 10°", "ax, az rotated 10° about y (x axis 10° nose-down)",
+     _pitched(10.0), ("x10_mixed_drive_fwd", "rav4", "sim:accel_brake")),
+    ("IMU mounted pitched 25°", "ax, az rotated 25° about y", _pitched(25.0),
+     ("sim:accel_brake",)),
 ]
 
 
@@ -201,11 +215,13 @@ def figures(df: pd.DataFrame, veh: Vehicle) -> str:
     lon = sanity._longitudinal(s, [])
     roll = sanity._roll(s, False, [])
     az = f"{np.median(df['az']):.2f}" if "az" in df.columns else "–"
+    pitch = sanity._pitch_offset(s)
+    pitch_cell = "–" if pitch is None else f"{pitch[0]:+.3f} ({pitch[1]})"
 
     def r(q: sanity._Ratio | None) -> str:
         return "–" if q is None else f"{q.value:.2f} ({q.n})"
     return (f"{r(lat)} | {r(yaw)} | {r(steer)} | {'–' if lon is None else f'{lon:.2f}'} | "
-            f"{'–' if roll is None else f'{roll.k:.4f}'} | {az}")
+            f"{'–' if roll is None else f'{roll.k:.4f}'} | {az} | {pitch_cell}")
 
 
 def build() -> str:
@@ -240,8 +256,9 @@ def build() -> str:
     out.append("")
     out.append(CLEAN_TEXT)
     out.append("| log | findings | ay/(v·r) (bins) | R·Δω/(track·r) (bins) | r/(v·δ/L) (bins) | "
-               "∫ax/R·Δω | roll gradient rad/(m/s²) | median az |")
-    out.append("|---|---|---|---|---|---|---|---|")
+               "∫ax/R·Δω | roll gradient rad/(m/s²) | median az | median(ax − R·ω̇) m/s² "
+               "(windows) |")
+    out.append("|---|---|---|---|---|---|---|---|---|")
     for name in clean_names:
         df, veh, src = get(name)
         n = len(sanity.find_problems(df, veh))
@@ -257,7 +274,8 @@ def build() -> str:
                             "STEER_HIGH", "LON_G", "LON_MAX_REL_SE", "LON_MIN_STEP",
                             "TORQUE_MIN_STEP", "T_STAT", "TORQUE_SCALE", "ROLL_MAX", "ROLL_WINDOW_S",
                             "ROLL_MIN_STEP", "AZ_TOL", "AZ_NO_GRAVITY", "WHEEL_RATIO",
-                            "WHEEL_ALONE", "WHEEL_SPREAD", "SCALE_EVIDENCE", "GNSS_TOL", "KMH_MIN")),
+                            "WHEEL_ALONE", "WHEEL_SPREAD", "SCALE_EVIDENCE", "GNSS_TOL", "KMH_MIN",
+                            "PITCH_AY_MAX", "PITCH_ACC_MAX", "PITCH_WARN", "PITCH_ERROR")),
                       (vehicle_file, ("RADIUS_MAX", "LENGTH_MAX", "MASS_RANGE"))):
         for c in names:
             out.append(f"| `{mod.__name__.rsplit('.', 1)[-1]}.{c}` | {getattr(mod, c)} | "
@@ -312,7 +330,10 @@ the measured channels) and the library's `vestim.estimate()`:
    difference ≈ r·track (the wheel columns' left/right labels are physical, so this fixes the
    sign of r and of the y axis); r ≈ v·δ/L·u with an understeer factor u of 0.3–1.3;
    ∫ax dt ≈ R·Δω; the wheel torques ≈ m·R·a; the body rolls outward (roll gradient
-   1–12°/g); median az ≈ +9.81; a speed channel (`gnss_speed`, `vehicle_speed`) ≈ R·ω.
+   1–12°/g); median az ≈ +9.81; a speed channel (`gnss_speed`, `vehicle_speed`) ≈ R·ω;
+   over the whole log, the median of ax − R·ω̇ on near-steady 1 s windows ≈ 0 (an IMU
+   pitched θ gives −g·sin θ: a warning from 0.6 m/s², 3.5°, since a road climbing 6 % for
+   the whole log gives as much; refused from 3 m/s², a 32 % grade no road holds).
    A log without wheel speeds takes its speed from `vehicle_speed` or `gnss_speed` and gets
    every check that does not need the wheels.
 

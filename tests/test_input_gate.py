@@ -459,3 +459,93 @@ def test_one_wheel_in_mph_is_refused() -> None:
                                              r"wheel speeds, its axle mate's included.*mph"):
         gate(mph, SUV)
     gate(log, SUV)  # the clean log passes
+
+
+# --- 9. an IMU mounted pitched (issue 30: "a 10° pitch mounting") ------------------------------
+
+CROSSPLANT = Path(__file__).resolve().parents[1] / ".." / "shared" / "crossplant" / "data"
+
+
+def _pitched(df: pd.DataFrame, deg: float) -> pd.DataFrame:
+    """ax, az of an IMU whose x axis points ``deg`` below the car's x-y plane (the channel
+    map's ``mounting = { pitch_deg = deg }``): rotated ``deg`` about y."""
+    p = math.radians(deg)
+    ax, az = df["ax"].to_numpy(), df["az"].to_numpy()
+    return df.assign(ax=math.cos(p) * ax - math.sin(p) * az, az=math.sin(p) * ax + math.cos(p) * az)
+
+
+def _pitch_findings(df: pd.DataFrame, veh: Vehicle) -> list[Any]:
+    from vestim.io.sanity import find_problems
+
+    return [f for f in find_problems(df, veh) if f.check == "pitch"]
+
+
+@pytest.fixture(scope="module")
+def x10() -> tuple[pd.DataFrame, Vehicle, dict[str, Any]]:
+    manifest = CROSSPLANT / "manifest.json"
+    if not manifest.is_file():
+        pytest.skip(f"crossplant data not at {CROSSPLANT}")
+    m = json.loads(manifest.read_text())["maneuvers"]["x10_mixed_drive_fwd"]
+    path = CROSSPLANT / m["vehicle_file"]
+    return (pd.read_parquet(CROSSPLANT / m["file"]), load_vehicle(path),
+            tomllib.loads(path.read_text()))
+
+
+def test_a_10_degree_pitch_mounting_gives_a_warning_with_the_angle(
+        x10: tuple[pd.DataFrame, Vehicle, dict[str, Any]]) -> None:
+    """Crossplant x10 with ax, az rotated 10° about y (issue 30: v_x 1.19 m/s off, no word).
+    Over its 125 near-steady 1 s windows ax reads a median −1.743 m/s² below R·ω̇ (clean
+    −0.048: the accelerometer's bias): −g·sin 10° = −1.70 plus that bias, i.e. an IMU pitched
+    asin(1.743/9.81) = 10.2° nose-down. Above PITCH_WARN = 0.6 (clean logs within ±0.16) and
+    below PITCH_ERROR = 3.0 (a road grade held for the whole log could give it): a warning in
+    the metadata naming ax, az, the offset, the angle and the fix; the clean log has none."""
+    df, veh, _ = x10
+    assert _pitch_findings(df, veh) == []
+    assert "pitch" not in {n.check for n in gate(df, veh).not_run}
+    report = gate(_pitched(df, 10.0), veh)  # a warning: no LogFormatError
+    found = [w for w in report.warnings if w.check == "pitch"]
+    assert [(w.severity, w.channel) for w in found] == [("warning", "ax, az")]
+    w = found[0]
+    assert -1.80 <= w.evidence <= -1.68
+    angle = float(w.message.split("an IMU pitched ")[1].split("°")[0])
+    assert abs(angle - 10.0) <= 2.0, w.message
+    assert "-1.74 m/s²" in w.message and "nose-down" in w.message
+    assert "[imu] mounting = { pitch_deg = 10.2 }" in w.message
+    assert "[calibration.imu] mount_pitch = 0.1786 (rad)" in w.message
+    assert json.loads(report.metadata()["warnings"])[0]["check"] == "pitch"
+    # nose-up: the sign follows (+1.647 m/s², −9.7°)
+    up = _pitch_findings(_pitched(df, -10.0), veh)
+    assert len(up) == 1 and "nose-up" in up[0].message and "pitch_deg = -9.7" in up[0].message
+
+
+def test_the_declared_mounting_clears_the_pitch_warning(
+        x10: tuple[pd.DataFrame, Vehicle, dict[str, Any]]) -> None:
+    """The fix the message names works: the same pitched x10 with the angle it gives
+    declared as [calibration.imu] mount_pitch (the estimators rotate ax, az back, and the
+    check reads ax as they do) leaves a median of about −0.05 m/s² (the clean log's)."""
+    df, _, data = x10
+    veh = vehicle_from_dict({**data, "calibration": {
+        "imu": {"mount_pitch": math.radians(10.0), "sigma_mount_pitch": 0.001}}})
+    assert _pitch_findings(_pitched(df, 10.0), veh) == []
+
+
+def test_a_pitch_no_road_explains_is_refused_and_a_small_one_passes() -> None:
+    """vestim's simulator's accel_brake (16 near-steady windows, clean +0.017 m/s²): an IMU
+    pitched 25° reads −g·sin 25° = −4.1 m/s², beyond PITCH_ERROR = 3.0 (a 32 % grade held
+    for the whole log): refused. 2° reads −0.33, within the warning limit 0.6 (3.5°): a
+    residual misalignment, no finding."""
+    log = _log("accel_brake")
+    with pytest.raises(LogFormatError, match=r"columns 'ax', 'az' look pitched: .*an IMU "
+                                             r"pitched 2[45]\.\d° nose-down.*no road holds"):
+        gate(_pitched(log, 25.0), SUV)
+    assert _pitch_findings(_pitched(log, 2.0), SUV) == []
+    assert len(_pitch_findings(_pitched(log, 10.0), SUV)) == 1
+
+
+def test_without_steady_driving_the_pitch_check_is_listed_as_not_run() -> None:
+    """The step steer turns above PITCH_AY_MAX = 2 m/s² for most of its 8 s (ax = v̇_x −
+    r·v_y there, +0.53 m/s² clean): fewer than 10 near-steady windows, so no pitch claim,
+    and checks_not_run says why."""
+    not_run = {n.check: n.reason for n in gate(_log(), SUV).not_run}
+    assert not_run["pitch"].startswith("not excited: fewer than 10 one-second windows of "
+                                       "near-steady driving")

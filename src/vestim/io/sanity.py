@@ -18,6 +18,9 @@ R·(ω_r − ω_l) ≈ r·track   the outer wheels travel further; the wheels' l
 r ≈ v·δ/L · u             kinematic steering with an understeer factor u = 1/(1+K·v²),
                           0.3–1.3 for a road car below the limit
 ∫ax dt ≈ R·Δω             the speed change over 1 s from the accelerometer and the wheels
+median(ax − R·ω̇) ≈ 0     over the whole log on level roads: an IMU pitched by θ adds
+                          −g·sin θ to every window (a road grade adds g·sin(grade), for
+                          a while)
 Σ torque ≈ m·R·a          the wheel torques accelerate the car, a = R·ω̇ (each wheel's
                           share > 0)
 ∫p dt ≈ k·Δay             the body rolls outward: roll gradient k = 0.002–0.021 rad per m/s²
@@ -59,6 +62,7 @@ from scipy.ndimage import uniform_filter1d
 from vestim.constants import CORNERS, G
 from vestim.errors import LogFormatError
 from vestim.io import channels as ch
+from vestim.io.calibration import correct_columns
 from vestim.io.log import (
     ACCEL_MAX,
     OMEGA_MAX,
@@ -213,6 +217,31 @@ wheel speeds), means that channel is in km/h: the clean 0.93–1.19 divided by 3
 KMH_MIN = 0.1
 """|ln(3.6·R)| below this (R between 0.251 and 0.307 m) makes km/h within 10 % of rad/s:
 indistinguishable and nearly harmless, so not reported."""
+PITCH_AY_MAX = 2.0
+"""m/s²; most |v·r| of a window's two bins for the pitch check: in a turn ax = v̇_x − r·v_y,
+and the sideslip term r·v_y = a_y·β is not in R·ω̇ (vestim's simulator's step steer reads
++0.53 m/s² over all its 14 windows, −0.005 over the two below 2 m/s²)."""
+PITCH_ACC_MAX = 1.0
+"""m/s²; most |R·Δω|/Δt of a window for the pitch check: near-steady driving, where a gain
+error of ax (the RAV4's phone reads 0.73 × the wheels' speed change) or wheels that lag the
+car under braking move the difference little (a gain of 0.73 by at most 0.27 m/s² per
+window)."""
+PITCH_WARN = 0.6
+"""m/s²; |median(ax − R·ω̇)| over the near-steady 1 s windows (v ≥ V_MIN_YAW, |v·r| ≤
+PITCH_AY_MAX, |R·ω̇| ≤ PITCH_ACC_MAX, no wheel slip) from which ax, az look pitched: a
+warning. The clean logs (level roads) read −0.10 to +0.16: crossplant x08 +0.036 and x10
+−0.048 (the other ten have fewer than MIN_BINS such windows), the 29 campaign logs with
+wheel speeds, ax and enough steady driving −0.095 to +0.163 (their accelerometer biases
+reach 0.14), the RAV4 +0.017 (95 windows), vestim's simulator's accel_brake +0.017. An IMU
+pitched 10° reads −1.66 to −1.74 (x10 −1.743, RAV4 −1.656, accel_brake −1.684; −10° on x10
++1.647), 5° −0.90 and 3° −0.56 (x10). 0.6 m/s² is 3.5° of pitch: 3.7 times the clean logs'
+largest figure, a third of the 10° figure, and the mean grade (6 %) of a log driven up or
+down a long motorway climb the whole time; a steeper road held for the whole log gives
+this warning too, which is why it is a warning (see PITCH_ERROR)."""
+PITCH_ERROR = 3.0
+"""m/s²; the same |median| from which ax, az are refused: g·sin 17.8°, a 32 % grade held
+for the whole log, which no public road has (the steepest streets reach 35 % for a few
+hundred metres); an IMU pitched ≥ 18°, or an axis mix-up (az in ax reads about +9.8)."""
 
 
 @dataclass(frozen=True)
@@ -225,7 +254,8 @@ class Finding:
         message: what was found, the likely cause and the fix.
         evidence: the figure the decision rests on (a ratio or slope; see ``check``).
         check: the relation that found it (``lateral``, ``yaw_wheels``, ``steering``,
-            ``longitudinal``, ``torque``, ``roll``, ``gravity``, ``wheels``, ``speed``).
+            ``longitudinal``, ``torque``, ``roll``, ``gravity``, ``wheels``, ``speed``,
+            ``pitch``).
     """
 
     channel: str
@@ -344,6 +374,9 @@ _NO_EXCITATION = {
              "m/s² and a determined roll gradient"),
     "torque": (f"not excited: fewer than {MIN_BINS} one-second windows with a speed change "
                f"≥ {TORQUE_MIN_STEP:g} m/s"),
+    "pitch": (f"not excited: fewer than {MIN_BINS} one-second windows of near-steady driving "
+              f"(v ≥ {V_MIN_YAW:g} m/s, |v·r| ≤ {PITCH_AY_MAX:g} m/s², |R·Δω|/Δt ≤ "
+              f"{PITCH_ACC_MAX:g} m/s², no wheel slip)"),
 }
 """The reason :class:`NotRun` gives for a check whose channels are there but not excited."""
 
@@ -355,6 +388,7 @@ def _run_checks(df: pd.DataFrame, vehicle: Vehicle) -> tuple[list[Finding], list
     out += _gravity(s)
     wheels_ran = _wheels_each_other(s, out)
     lon = _longitudinal(s, out)
+    pitch_ran = _pitch(s, out)
     lat = _ratio_check(s.lat_x, s.ay, s.lat_sel)
     yaw = _ratio_check(s.r, s.yaw_y, s.yaw_sel)
     steer = _ratio_check(s.steer_x, s.r, s.steer_sel)
@@ -380,10 +414,13 @@ def _run_checks(df: pd.DataFrame, vehicle: Vehicle) -> tuple[list[Finding], list
         "yaw_wheels": None if s.has_wheels else "no wheel-speed channels",
         "roll": None if "roll_rate" in cols else "no roll_rate channel",
         "torque": None if set(ch.TORQUES) <= cols else "no wheel-torque channels",
+        "pitch": ("no ax channel" if "ax" not in cols else
+                  None if s.has_wheels else "no wheel-speed channels"),
     }
     ran = {"gravity": "az" in cols, "wheels": wheels_ran, "longitudinal": lon is not None,
            "lateral": lat is not None, "yaw_wheels": yaw is not None,
-           "steering": steer is not None, "roll": roll is not None, "torque": torque_ran}
+           "steering": steer is not None, "roll": roll is not None, "torque": torque_ran,
+           "pitch": pitch_ran}
     not_run = [NotRun(check, missing.get(check) or _NO_EXCITATION[check])
                for check, done in ran.items() if not done]
     return out, not_run
@@ -735,6 +772,66 @@ def _longitudinal(s: _Signals, out: list[Finding]) -> float | None:
                         "points backwards or ax has the wrong sign; negate ax", best,
                         "longitudinal"))
     return best
+
+
+def _pitch_offset(s: _Signals) -> tuple[float, int] | None:
+    """median(ax − R·ω̇) in m/s² over the near-steady 1 s windows, and their number; None
+    without wheel speeds or ax, or with fewer than MIN_BINS windows. ``ax`` is taken after
+    the vehicle file's ``[calibration.imu]`` scale and mounting (what the estimators use)."""
+    if not s.has_wheels or "ax" not in s.df.columns:
+        return None
+    k0, k1 = s.window_pairs()
+    if len(k0) < MIN_BINS:
+        return None
+    ax = _f(s.df, "ax")
+    cal = s.vehicle.calibration
+    if cal is not None and cal.groups and {"ay", "az"} <= set(s.df.columns):
+        cols = {c: _f(s.df, c) for c in ("ax", "ay", "az")}
+        correct_columns(cols, cal, wheel_radius=s.R,
+                        steering_ratio=s.vehicle.body.steering_ratio)
+        ax = cols["ax"]
+    a = s.integral_at_bins(ax)
+    dt = s.tb[k1] - s.tb[k0]
+    with np.errstate(invalid="ignore", divide="ignore"):
+        acc = (s.v[k1] - s.v[k0]) / dt
+        off = (a[k1] - a[k0]) / dt - acc
+        sel = ((np.minimum(s.v[k0], s.v[k1]) >= V_MIN_YAW)
+               & (np.maximum(np.abs(s.lat_x[k0]), np.abs(s.lat_x[k1])) <= PITCH_AY_MAX)
+               & (np.abs(acc) <= PITCH_ACC_MAX) & np.isfinite(off))
+    n = int(np.count_nonzero(sel))
+    if n < MIN_BINS:
+        return None
+    return float(np.median(off[sel])), n
+
+
+def _pitch(s: _Signals, out: list[Finding]) -> bool:
+    """ax against the wheels' speed change over the whole log: gravity leaking into ax from
+    an IMU mounted pitched (a warning, an error beyond PITCH_ERROR). Returns whether the
+    check was evaluated."""
+    got = _pitch_offset(s)
+    if got is None:
+        return False
+    off, n = got
+    if abs(off) < PITCH_WARN:
+        return True
+    # The sensor's x axis PITCH below the body's x-y plane reads ax = ... − g·sin(PITCH).
+    pitch = math.degrees(math.asin(max(-1.0, min(1.0, -off / G))))
+    grade = 100.0 * math.tan(math.asin(min(1.0, abs(off) / G)))
+    way = "nose-down" if pitch > 0 else "nose-up"
+    sev = _err if abs(off) >= PITCH_ERROR else _warn
+    road = (f"or the whole log was driven {'up' if off > 0 else 'down'} a {grade:.0f} % "
+            "grade" if sev is _warn else
+            f"no road holds a {grade:.0f} % grade for a whole log")
+    out.append(sev("ax, az", f"columns 'ax', 'az' look pitched: over {n} near-steady 1 s "
+                   f"windows ax reads a median {off:+.2f} m/s² away from the wheels' speed "
+                   f"change R·ω̇ (clean logs on level roads: within ±0.16; ax includes g·sin of "
+                   f"the sensor's pitch): an IMU pitched {abs(pitch):.1f}° {way} "
+                   f"(asin({-off:.2f}/{G}) = {pitch:+.1f}°), {road}. If the IMU is "
+                   f"mounted pitched, declare it: the channel map's [imu] mounting = "
+                   f"{{ pitch_deg = {pitch:.1f} }} (docs/channel-map.md), or [calibration.imu] "
+                   f"mount_pitch = {math.radians(pitch):.4f} (rad) in the vehicle file; ax "
+                   "and az are then rotated into the body axes", off, "pitch"))
+    return True
 
 
 def _yaw_scale(s: _Signals, lat: _Ratio | None, yaw: _Ratio | None,
