@@ -79,6 +79,7 @@ from vestim.estimators.uncertainty import (
 )
 from vestim.estimators.validity import GROUPS as VALIDITY_GROUPS
 from vestim.estimators.validity import (
+    UNOBSERVABLE,
     ConsistencyState,
     ValidityKernelParams,
     consistency_step,
@@ -200,8 +201,11 @@ _R_UTIL = 3 + 4 * _PER_CORNER.index("mu_x")  # mu_x_fl … mu_x_rr, then mu_y_fl
 _S_FZ = SIGMA_NAMES.index("sigma_fz_fl")
 FZ_RESOLVED = 2.0
 """A corner's F_z below this many of its σ_Fz is not resolved from zero (a wheel nearly
-lifted): its μ_x = F_x/F_z and μ_y = F_y/F_z are undefined there and written NaN. Campaign
-s1_014's rear right carried 302 N where the estimate read 2 N: F_x/F_z = 41.7."""
+lifted): its μ_x = F_x/F_z and μ_y = F_y/F_z say nothing of the friction used there, so they
+are written 0 (the lifted wheel's convention of ``normalised``) and the row's force group is
+not valid, reason "unobservable" (bit 16). Campaign s1_014's rear right carried 302 N where
+the estimate read 2 N: F_x/F_z was 41.7."""
+_G_FORCE = list(VALIDITY_GROUPS).index("force")
 N_ROW = _R_CONF + 4
 
 
@@ -833,7 +837,12 @@ def _post(p: PostParams, st: PostState, x: np.ndarray, t: np.ndarray, ax: np.nda
             if fz_i[c] < FZ_RESOLVED * sigma[_S_FZ + c]:
                 for j in (_R_UTIL + c, _R_UTIL + 4 + c):
                     if col[j] >= 0:
-                        Y[col[j], k] = np.nan
+                        Y[col[j], k] = 0.0
+                j = _R_MU + 12 + 2 * _G_FORCE
+                if col[j] >= 0:
+                    Y[col[j], k] = 0.0
+                if col[j + 1] >= 0:
+                    Y[col[j + 1], k] = float(int(reason[_G_FORCE]) | UNOBSERVABLE)
 
 
 def _corner_trees(pipe: Pipeline) -> tuple[CornerParams, CornerState]:
