@@ -417,8 +417,7 @@ def test_utilisation_of_a_nearly_lifted_wheel_is_flagged_not_reported(tmp_path: 
     rows of 5929) μ_x, μ_y are 0 and the row's force group is not valid with reason bit 16
     "unobservable"; elsewhere |μ| stays within the physical 1.2 (measured 1.12), and the
     estimate still writes (every value finite, as the log format requires)."""
-    from vestim.estimators.validity import UNOBSERVABLE
-    from vestim.pipeline.rows import FZ_RESOLVED
+    from vestim.estimators.validity import FZ_RESOLVED, UNOBSERVABLE
 
     truth = pd.read_parquet(_CAMPAIGN / "s1_014_ramp_steer.parquet")
     log = truth[[c for c in truth.columns if not c.startswith(("ref_", "_"))]]

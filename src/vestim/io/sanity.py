@@ -711,36 +711,33 @@ def _wheels_each_other(s: _Signals, out: list[Finding]) -> bool:
         return False
     w4 = np.column_stack([s.omega[c] for c in CORNERS])[sel]
     for i, c in enumerate(CORNERS):
-        others = np.median(np.delete(w4, i, axis=1), axis=1)
-        with np.errstate(invalid="ignore", divide="ignore"):
-            lr = np.log(np.abs(w4[:, i]) / np.abs(others))
-        lr = lr[np.isfinite(lr)]
+        lr = _log_ratio(w4[:, i], np.median(np.delete(w4, i, axis=1), axis=1))
         if len(lr) < MIN_BINS:
             continue
         q25, med, q75 = np.quantile(lr, [0.25, 0.5, 0.75])
-        factor = math.exp(float(med))
-        if q75 - q25 > WHEEL_SPREAD:
+        if q75 - q25 > WHEEL_SPREAD or abs(med) < math.log(WHEEL_ALONE):
             continue
-        if abs(med) >= math.log(WHEEL_RATIO):
-            out.append(_err(
-                f"omega_{c}", f"column 'omega_{c}' is a constant {factor:.3g} × the other wheel "
-                "speeds: it is in another unit (rpm gives 9.55, m/s gives 1/R) or scaled "
-                "differently; convert it to rad/s like the others", factor, "wheels"))
-        elif abs(med) >= math.log(WHEEL_ALONE) and abs(_mate_ratio(w4, i)) >= math.log(WHEEL_ALONE):
-            out.append(_err(
-                f"omega_{c}", f"column 'omega_{c}' is a constant {factor:.3g} × the other wheel "
-                "speeds, its axle mate's included: it is in another unit (mph read as rad/s "
-                f"gives 2.237·R = {2.237 * s.R:.3g}, km/h 3.6·R = {3.6 * s.R:.3g}) or scaled "
-                "differently; convert it to rad/s like the others", factor, "wheels"))
+        alone = abs(med) < math.log(WHEEL_RATIO)  # a smaller factor: its axle mate's too
+        if alone:
+            to_mate = _log_ratio(w4[:, i], w4[:, i ^ 1])
+            if not len(to_mate) or abs(float(np.median(to_mate))) < math.log(WHEEL_ALONE):
+                continue
+        factor = math.exp(float(med))
+        units = (f"mph read as rad/s gives 2.237·R = {2.237 * s.R:.3g}, km/h 3.6·R = "
+                 f"{3.6 * s.R:.3g}" if alone else "rpm gives 9.55, m/s gives 1/R")
+        mate_note = ", its axle mate's included" if alone else ""
+        out.append(_err(
+            f"omega_{c}", f"column 'omega_{c}' is a constant {factor:.3g} × the other wheel "
+            f"speeds{mate_note}: it is in another unit ({units}) or scaled differently; convert it "
+            "to rad/s like the others", factor, "wheels"))
     return True
 
 
-def _mate_ratio(w4: np.ndarray, i: int) -> float:
-    """Median ln |ω_i / ω_mate| of wheel i (index in CORNERS) against its axle mate."""
+def _log_ratio(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """ln |a / b| where finite (a wheel speed against others, rad/s both)."""
     with np.errstate(invalid="ignore", divide="ignore"):
-        lr = np.log(np.abs(w4[:, i]) / np.abs(w4[:, i ^ 1]))
-    lr = lr[np.isfinite(lr)]
-    return float(np.median(lr)) if len(lr) else 0.0
+        lr = np.log(np.abs(a) / np.abs(b))
+    return lr[np.isfinite(lr)]
 
 
 def _longitudinal(s: _Signals, out: list[Finding]) -> float | None:

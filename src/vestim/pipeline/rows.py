@@ -79,10 +79,10 @@ from vestim.estimators.uncertainty import (
 )
 from vestim.estimators.validity import GROUPS as VALIDITY_GROUPS
 from vestim.estimators.validity import (
-    UNOBSERVABLE,
     ConsistencyState,
     ValidityKernelParams,
     consistency_step,
+    load_resolved,
     validity_step,
 )
 from vestim.estimators.velocity.corner import CornerVelocityEstimator, corner_rows, seed_corners
@@ -199,13 +199,6 @@ _R_SIGMA = _R_HEALTH + 7
 _R_CONF = _R_SIGMA + N_SIGMA
 _R_UTIL = 3 + 4 * _PER_CORNER.index("mu_x")  # mu_x_fl … mu_x_rr, then mu_y_fl … mu_y_rr
 _S_FZ = SIGMA_NAMES.index("sigma_fz_fl")
-FZ_RESOLVED = 2.0
-"""A corner's F_z below this many of its σ_Fz is not resolved from zero (a wheel nearly
-lifted): its μ_x = F_x/F_z and μ_y = F_y/F_z say nothing of the friction used there, so they
-are written 0 (the lifted wheel's convention of ``normalised``) and the row's force group is
-not valid, reason "unobservable" (bit 16). Campaign s1_014's rear right carried 302 N where
-the estimate read 2 N: F_x/F_z was 41.7."""
-_G_FORCE = list(VALIDITY_GROUPS).index("force")
 N_ROW = _R_CONF + 4
 
 
@@ -811,11 +804,27 @@ def _post(p: PostParams, st: PostState, x: np.ndarray, t: np.ndarray, ax: np.nda
                              (_R_MU + 3 * c + 2, ex[c])):
                 if col[j] >= 0:
                     Y[col[j], k] = value
+        for c in range(4):
+            fz_i[c] = fz[i, c]
+        uncertainty_step(p.uncertainty, st.uncertainty, t[i], vx, sig[i, 0], sig[i, 1],
+                         delta[i], omega[i], ax[i], x[i, X_AY], fz_i, vxt[i], vyt[i],
+                         sr[i], c_y[i], sigma)
+        for c in range(N_SIGMA):
+            if col[_R_SIGMA + c] >= 0:
+                Y[col[_R_SIGMA + c], k] = sigma[c]
+        # A load not resolved from zero: μ_x, μ_y written 0 (no friction use; validity bit 16).
+        lifted = False
+        for c in range(4):
+            if not load_resolved(fz_i[c], sigma[_S_FZ + c]):
+                lifted = True
+                for j in (_R_UTIL + c, _R_UTIL + 4 + c):
+                    if col[j] >= 0:
+                        Y[col[j], k] = 0.0
         consistent = consistency_step(p.validity, st.consistency, t[i], radius, vx, omega[i],
                                       vxt[i])
         validity_step(p.validity, t[i], st.t_start[0], vx, sr[i], sa[i], delta[i, 0],
                       delta[i, 1], x[i, X_AY], vy_unverified[i], x[i, X_HELD] != 0.0,
-                      consistent, valid, reason)
+                      consistent, lifted, valid, reason)
         for g in range(_N_GROUPS):
             j = _R_MU + 12 + 2 * g
             if col[j] >= 0:
@@ -825,24 +834,6 @@ def _post(p: PostParams, st: PostState, x: np.ndarray, t: np.ndarray, ax: np.nda
         for c in range(7):
             if col[_R_HEALTH + c] >= 0:
                 Y[col[_R_HEALTH + c], k] = x[i, X_HEALTH_OMEGA + c]
-        for c in range(4):
-            fz_i[c] = fz[i, c]
-        uncertainty_step(p.uncertainty, st.uncertainty, t[i], vx, sig[i, 0], sig[i, 1],
-                         delta[i], omega[i], ax[i], x[i, X_AY], fz_i, vxt[i], vyt[i],
-                         sr[i], c_y[i], sigma)
-        for c in range(N_SIGMA):
-            if col[_R_SIGMA + c] >= 0:
-                Y[col[_R_SIGMA + c], k] = sigma[c]
-        for c in range(4):
-            if fz_i[c] < FZ_RESOLVED * sigma[_S_FZ + c]:
-                for j in (_R_UTIL + c, _R_UTIL + 4 + c):
-                    if col[j] >= 0:
-                        Y[col[j], k] = 0.0
-                j = _R_MU + 12 + 2 * _G_FORCE
-                if col[j] >= 0:
-                    Y[col[j], k] = 0.0
-                if col[j + 1] >= 0:
-                    Y[col[j + 1], k] = float(int(reason[_G_FORCE]) | UNOBSERVABLE)
 
 
 def _corner_trees(pipe: Pipeline) -> tuple[CornerParams, CornerState]:

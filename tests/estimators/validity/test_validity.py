@@ -118,3 +118,21 @@ def test_reason_names_decode_every_bit() -> None:
         reason_names(1.5)
     with pytest.raises(ValueError, match="not a non-negative whole number"):
         reason_names(-1)
+
+
+def test_an_unresolved_load_makes_the_force_group_unobservable() -> None:
+    """A corner's F_z below 2 σ_Fz (a wheel nearly lifted) sets bit 16 on the force group
+    only, in a turn that sets nothing else; 600 N with σ 310 N is not resolved, 620 N is
+    (the boundary of load_resolved), and a NaN σ leaves the load resolved."""
+    from vestim.estimators.validity import FZ_RESOLVED, load_resolved
+
+    one = np.array([1.0])
+    args = (np.array([5.0]), 0.0, 20.0 * one, np.zeros((1, 4)), np.zeros((1, 4)),
+            np.full((1, 2), 0.05), 2.0 * one, np.array([False]), ValidityParams())
+    flags = validity(*args, load_unresolved=np.array([True]))
+    assert flags["reason_force"][0] == UNOBSERVABLE and flags["valid_force"][0] == 0.0
+    assert flags["reason_velocity"][0] == 0.0 and flags["reason_slip"][0] == 0.0
+    assert validity(*args)["reason_force"][0] == 0.0
+    assert FZ_RESOLVED == 2.0
+    assert not load_resolved(600.0, 310.0) and load_resolved(620.0, 310.0)
+    assert load_resolved(600.0, np.nan)

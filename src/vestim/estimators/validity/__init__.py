@@ -13,7 +13,9 @@ bit    reason              when
                            wheel-speed evidence of v_x and the linear-tire v_y are gone
 16     unobservable        the per-corner lateral-force split with the wheels straight and no
                            lateral load (|δ| < ``straight_delta`` and |a_y| < ``straight_ay``):
-                           the left/right shares then come from the model, not the data
+                           the left/right shares then come from the model, not the data; or a
+                           corner's normal load not resolved from zero (a wheel nearly lifted,
+                           F_z below ``FZ_RESOLVED`` σ_Fz): its F/F_z is no friction use
 32     input faulty        :meth:`~vestim.pipeline.Pipeline.step` held a dropped input value
 64     v_y unverified      the reference filter has accepted no v_y pseudo-measurement for
                            ``unverified_s``: the tire model and the a_y integral disagree (a
@@ -155,6 +157,21 @@ def validity_params(p: ValidityParams) -> ValidityKernelParams:
     return pack(ValidityKernelParams, p)
 
 
+FZ_RESOLVED = 2.0
+"""A corner's F_z below this many of its σ_Fz is not resolved from zero (a wheel nearly
+lifted): its μ_x = F_x/F_z and μ_y = F_y/F_z say nothing of the friction used there, so the
+output writes them 0 (the lifted wheel's convention) and the row's force group is not valid,
+reason 16. Campaign s1_014's rear right carried 302 N where the estimate read 2 N: F_x/F_z
+was 41.7."""
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def load_resolved(fz: float, sigma_fz: float) -> bool:
+    """Whether a corner's normal load ``fz`` (N) is resolved from zero by its one-sigma
+    ``sigma_fz`` (N): F_z ≥ :data:`FZ_RESOLVED` σ_Fz (NaN σ: resolved)."""
+    return not fz < FZ_RESOLVED * sigma_fz
+
+
 MASKS = np.array(list(GROUPS.values()), dtype=np.int64)
 """The groups' reason masks, in :data:`GROUPS` order (a compile-time constant of
 :func:`validity_step`)."""
@@ -164,14 +181,16 @@ MASKS = np.array(list(GROUPS.values()), dtype=np.int64)
 def validity_step(p: ValidityKernelParams, t: float, t_start: float, vx: float,
                   slip_ratio: np.ndarray, slip_angle: np.ndarray, delta_l: float,
                   delta_r: float, ay: float, vy_unverified: float, held: bool,
-                  consistent: float, valid: np.ndarray, reason: np.ndarray) -> None:
+                  consistent: float, load_unresolved: bool, valid: np.ndarray,
+                  reason: np.ndarray) -> None:
     """The flags of the module docstring for one sample at time ``t`` (s; ``t_start`` the
     log's first, s): CG ``vx`` (m/s), per-corner ``slip_ratio`` and ``slip_angle`` (4,)
     (NaN: not known, no flag), the front road-wheel angles ``delta_l``, ``delta_r`` (rad),
     ``ay`` (m/s²), ``vy_unverified`` (s since the reference filter last accepted a v_y
     pseudo-measurement; NaN: no such filter, no flag), ``held`` (an input value was held
-    over a dropout) and ``consistent`` (:func:`consistency_step`'s: 0.0 sets bit 128, 1.0 or
-    NaN does not). ``valid`` and
+    over a dropout), ``consistent`` (:func:`consistency_step`'s: 0.0 sets bit 128, 1.0 or
+    NaN does not) and ``load_unresolved`` (a corner's F_z below :data:`FZ_RESOLVED` σ_Fz:
+    bit 16, see :func:`load_resolved`). ``valid`` and
     ``reason`` (groups,) are written, one entry per :data:`GROUPS` group (stateless)."""
     bits = 0
     if t - t_start < p.converge_s:
@@ -183,7 +202,8 @@ def validity_step(p: ValidityKernelParams, t: float, t_start: float, vx: float,
     for c in range(4):  # NaN (not known) compares False: no flag
         if abs(slip_ratio[c]) > p.high_slip_ratio or abs(slip_angle[c]) > p.high_slip_angle:
             bits |= HIGH_SLIP
-    if max(abs(delta_l), abs(delta_r)) < p.straight_delta and abs(ay) < p.straight_ay:
+    if ((max(abs(delta_l), abs(delta_r)) < p.straight_delta and abs(ay) < p.straight_ay)
+            or load_unresolved):
         bits |= UNOBSERVABLE
     if held:
         bits |= INPUT_FAULTY
@@ -201,19 +221,21 @@ def validity_step(p: ValidityKernelParams, t: float, t_start: float, vx: float,
 def validity_kernel(p: ValidityKernelParams, t: np.ndarray, t_start: float, vx: np.ndarray,
                     slip_ratio: np.ndarray, slip_angle: np.ndarray, delta: np.ndarray,
                     ay: np.ndarray, vy_unverified: np.ndarray, held: np.ndarray,
-                    consistent: np.ndarray, valid: np.ndarray, reason: np.ndarray) -> None:
+                    consistent: np.ndarray, load_unresolved: np.ndarray, valid: np.ndarray,
+                    reason: np.ndarray) -> None:
     """:func:`validity_step` over a block of samples (see :func:`validity`); ``valid``,
     ``reason`` (n, groups) are written, one column per :data:`GROUPS` entry."""
     for k in range(t.shape[0]):
         validity_step(p, t[k], t_start, vx[k], slip_ratio[k], slip_angle[k], delta[k, 0],
-                      delta[k, 1], ay[k], vy_unverified[k], held[k], consistent[k], valid[k],
-                      reason[k])
+                      delta[k, 1], ay[k], vy_unverified[k], held[k], consistent[k],
+                      load_unresolved[k], valid[k], reason[k])
 
 
 def validity(t: np.ndarray, t_start: float, vx: np.ndarray, slip_ratio: np.ndarray,
              slip_angle: np.ndarray, delta: np.ndarray, ay: np.ndarray, input_held: np.ndarray,
              p: ValidityParams, vy_unverified: np.ndarray | None = None,
-             consistent: np.ndarray | None = None) -> dict[str, np.ndarray]:
+             consistent: np.ndarray | None = None,
+             load_unresolved: np.ndarray | None = None) -> dict[str, np.ndarray]:
     """The flags of the module docstring for a block of samples.
 
     Args:
@@ -226,6 +248,8 @@ def validity(t: np.ndarray, t_start: float, vx: np.ndarray, slip_ratio: np.ndarr
             pseudo-measurement (None or NaN: no such filter, no flag).
         consistent: (n,) :func:`consistency_step`'s results, 1.0, 0.0 (bit 128) or NaN
             (None: not tested, no flag).
+        load_unresolved: (n,) True where a corner's F_z is not resolved from zero
+            (:func:`load_resolved`; None: no flag).
 
     Returns:
         ``valid_<group>`` (1.0/0.0) and ``reason_<group>`` (the bit mask as a float), (n,).
@@ -235,11 +259,13 @@ def validity(t: np.ndarray, t_start: float, vx: np.ndarray, slip_ratio: np.ndarr
     c = np.ascontiguousarray
     unverified = np.full(n, np.nan) if vy_unverified is None else vy_unverified
     tested = np.full(n, np.nan) if consistent is None else consistent
+    lifted = np.zeros(n, np.bool_) if load_unresolved is None else load_unresolved
     validity_kernel(validity_params(p), c(t, dtype=np.float64), float(t_start),
                     c(vx, dtype=np.float64), c(slip_ratio, dtype=np.float64),
                     c(slip_angle, dtype=np.float64), c(delta, dtype=np.float64),
                     c(ay, dtype=np.float64), c(unverified, dtype=np.float64),
-                    c(input_held, dtype=np.bool_), c(tested, dtype=np.float64), valid, reason)
+                    c(input_held, dtype=np.bool_), c(tested, dtype=np.float64),
+                    c(lifted, dtype=np.bool_), valid, reason)
     out: dict[str, np.ndarray] = {}
     for j, group in enumerate(GROUPS):
         out[f"valid_{group}"] = valid[:, j]
