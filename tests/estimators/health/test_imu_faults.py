@@ -252,16 +252,19 @@ def _vx_errors(name: str) -> tuple[float, float, float, float, float]:
             float(err[0][after].max()), float(err[2][after].max()))
 
 
-@pytest.mark.parametrize("name", ["x06", _xf("sim_accel_brake", "measured v_x error 0.333 m/s "
-                                             "(step not flagged); bound 2×0.087+0.1 = 0.274")])
+@pytest.mark.parametrize("name", ["x06", "sim_accel_brake"])
 def test_vx_bounded_under_ax_bias_step(name: str):
     """Issue 15's bound: v_x error ≤ 2 × the clean run's max + 0.1 m/s, and after the fault
     (2 s on) within 2 × the clean run's there + 0.1. x06 measured: clean 0.207, unguarded
-    0.362, with the health replacement 0.258 m/s (bound 0.515); the replacement must also
-    do better than leaving the step in."""
+    0.362, with the health replacement 0.258 m/s (bound 0.515) before issue 31; since its
+    wheel evidence keeps the free-rolling wheels trusted in the turn, the wheels hold v_x
+    through the step (unguarded and guarded both 0.022 m/s, the clean run's maximum). The
+    replacement must never do worse than leaving the step in. Our simulator's AWD
+    accelerate-and-brake met the bound first with issue 31's soft gate (0.333 m/s before,
+    bound 2 × 0.087 + 0.1 = 0.274; the step is not flagged)."""
     clean, unguarded, guarded, clean_after, guarded_after = _vx_errors(name)
     assert guarded <= 2 * clean + 0.1
-    assert guarded < unguarded
+    assert guarded <= unguarded
     assert guarded_after <= 2 * clean_after + 0.1
 
 

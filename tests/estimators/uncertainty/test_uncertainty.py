@@ -497,6 +497,8 @@ INDEPENDENT_MISSED: dict[tuple[str, str], str] = {
                     "0.16 % off, against the 0.4 % radius term",
     ("x06", "vy"): "measured 25.9 / 100.0 %: a v_y error that persists through the wet ramp "
                    "steer (0.29 m/s RMS) against σ_vy's cornering term; 2σ holds",
+    ("x06", "vx"): f"measured 100.0 / 100.0 % (was in band): the free-rolling wheels hold v_x "
+                   f"through the turn since issue 31 (0.075 % NRMS, was 0.53 %); {_RADIUS}",
     ("x10", "vx"): f"measured 100.0 / 100.0 %: a simulated plant's radius is the file's; {_RADIUS}",
     ("x10", "vy"): "measured 98.6 / 100.0 %: the σ_vy floor 0.02 m/s (the RAV4's straight-line "
                    "v_y error) is 3× this plant's",

@@ -199,17 +199,24 @@ def test_kernel_params_take_every_tuning_field_from_the_config() -> None:
 def test_a_changed_gate_reaches_the_kernel() -> None:
     # Free rolling at 20 m/s with the rr wheel reading 1.5 m/s high: its innovation is
     # 1.5 m/s against σ = √(r_wheel) = 0.22 m/s, i.e. 6.7σ. At the default gate (5σ) it is
-    # rejected in every sample and v_x stays at 20 m/s (within 1e-5 m/s); at twice the
-    # gate it is accepted with the others' weight and v_x reads their mean, 20.375 m/s.
+    # rejected in every sample and v_x stays at 20 m/s (within 1e-5 m/s). At twice the gate
+    # it is accepted: without the soft gate with the others' weight, so v_x reads their
+    # mean, 20.375 m/s; with it (beyond 2σ while three wheels agree) as a slipping wheel,
+    # σ raised to 0.75 m/s with the excess as persistent slip (τ_wheel/T_s = 200): its weight
+    # is then ≈ 1/1000 of the other three's and v_x stays within 2 mm/s of 20.
     n = int(10 * FS)
     inp = _inputs(np.full(n, 20.0), np.zeros(n), np.zeros(n), np.zeros(n), np.zeros((n, 2)))
     inp["omega"][:, 3] += 1.5 / R
     p = ReferenceParams()
-    tight, wide = _run(inp, p), _run(inp, replace(p, gate=2.0 * p.gate))
+    tight = _run(inp, p)
+    wide = _run(inp, replace(p, gate=2.0 * p.gate, soft_gate=1e9))
+    soft = _run(inp, replace(p, gate=2.0 * p.gate))
     assert np.all(np.isinf(tight["trust"][:, 3]))
     assert np.all(np.isfinite(wide["trust"][:, 3]))
+    assert np.all(np.isfinite(soft["trust"][:, 3]))
     assert np.abs(tight["v"][-200:, 0] - 20.0).max() < 1e-5
     assert np.abs(wide["v"][-200:, 0] - 20.375).max() < 1e-3
+    assert np.abs(soft["v"][-200:, 0] - 20.0).max() < 2e-3
 
 
 def test_stiffness_params_derive_the_prior_from_c0() -> None:

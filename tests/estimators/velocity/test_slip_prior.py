@@ -59,14 +59,15 @@ def test_rav4_vx_within_target_without_gnss() -> None:
 @pytest.mark.skipif(not XP.exists(), reason=f"crossplant data not found at {XP}")
 @pytest.mark.parametrize(("name", "vehicle", "without"), [
     ("x04_brake_splitmu_rwd", "vehicle3.toml", 0.23),
-    ("x07_brake_turn_dry_awd", "vehicle3_awd.toml", 0.42)])
+    ("x07_brake_turn_dry_awd", "vehicle3_awd.toml", 0.46)])
 def test_expected_slip_correction_on_crossplant_braking(name: str, vehicle: str,
                                                         without: float) -> None:
     """Braking on every wheel (x07 AWD on dry at 4 m/s² in a turn, x04 3 m/s² on split
     μ 0.2 / 0.9): all wheels read slow by their slip, so with the same σ and no correction
     the CG v_x follows them (NRMS ``without`` %, measured); removing μ_x/C with the prior
     C = 20 brings it under 0.1 % (measured 0.06 and 0.05 %; x07 0.02 and, without the
-    correction, 0.38 % before the r-coupled covariance of issue 29). The plant's PAC2002
+    correction, 0.38 % before the r-coupled covariance of issue 29, 0.42 % before issue 31's
+    wheel evidence). The plant's PAC2002
     tire is not the prior's."""
     log = pd.read_parquet(XP / f"{name}.parquet")
     assert _nrms(_run(log, str(XP / vehicle)), log, 0.5) < 0.1
@@ -80,8 +81,9 @@ def test_steady_drive_torque_does_not_bias_vx() -> None:
     slip-signed inflation was on all the time, and on noise-sized innovations (σ ≈ 0.15 m/s
     a sample) it de-weighted the wheels reading above v̂_x and not those below: CG v_x NRMS
     1.25 % (−0.3 m/s). With the dead zone at 5 % of the static wheel load (92 N m for this
-    SUV) it is ≤ 0.2 % (measured 0.08 %)."""
+    SUV) it is ≤ 0.2 % (measured 0.08 %). Without the dead zone it is 0.63 % (1.25 % before
+    issue 31's soft gate, which now also de-weights part of the wheels it had trusted)."""
     log = simulate(get_maneuver("lc_wet", tire="lugre", drivetrain="awd"),
                    load_vehicle("hashemi_suv"), seed=1)
     assert _nrms(_run(log, "hashemi_suv"), log) <= 0.2
-    assert _nrms(_run(log, "hashemi_suv", torque_dead_mu=0.0), log) > 1.0  # the bias removed
+    assert _nrms(_run(log, "hashemi_suv", torque_dead_mu=0.0), log) > 0.5  # the bias removed

@@ -85,6 +85,12 @@ class ReferenceParams:
         k_acc: slip-evidence gain on |R ω̇ − a_x|, s (m/s per m/s²).
         slip_sign: innovation (m/s) at which a slip-signed innovation doubles σ.
         gate: innovation gate in standard deviations.
+        soft_gate: normalised innovation (standard deviations) beyond which a wheel that
+            disagrees with v̂_x while another wheel agrees enters as a slipping wheel: its σ
+            raised so that its innovation is ``soft_gate`` σ, the excess as persistent slip
+            (τ_wheel/T_s). A spinning wheel at the turn of its oscillation shows no torque
+            or ω̇ evidence for a few samples; 2 σ: crossplant x02 (RWD launch on ice, the
+            rear wheels 60 % above the speed at their slowest) CG v_x 0.254 → 0.123 %.
         r_vy: variance of the axles' v_y pseudo-measurements at zero slip angle, (m/s)².
         k_vy: growth of their σ with the sideslip acceleration |f_y − b_y − r v_x|, s.
         bias_max: bound on |b_x|, m/s² (sensor bias plus a grade of about 5 %).
@@ -105,11 +111,6 @@ class ReferenceParams:
             its σ enters with the variance inflated by τ/T_s (0: white).
         acc_dead: dead zone of the |R ω̇ − a_x| evidence, m/s² (the wheel-speed noise makes
             ω̇ over the window noisy: σ ≈ 2 m/s² for the simulator's sensors at 200 Hz).
-        k_lat: slip-evidence gain on the wheel's lateral sliding speed |v_yt| (dimensionless:
-            m/s of σ per m/s): a tire sliding sideways is in combined slip and rolls slower.
-            0.5: with 1, a v_y estimate that is itself off (a car whose stiffness the
-            file does not know) made free-rolling wheels untrusted and coupled the v_y error
-            into v_x (crossplant x02 0.29 → 0.14 %, x06 0.57 → 0.47 %).
         q_gyro_bias: random-walk intensity of the yaw-gyro bias b_r, (rad/s)²/s.
         gyro_bias_sd: prior one-sigma of b_r, rad/s. 0.006 (0.34°/s): a MEMS yaw gyro's
             turn-on bias is specified at 0.3–0.5°/s, and the crossplant campaign draws it from
@@ -192,6 +193,7 @@ class ReferenceParams:
     k_acc: float = 0.3
     slip_sign: float = 0.3
     gate: float = 5.0
+    soft_gate: float = 2.0
     r_vy: float = 0.0025
     k_vy: float = 0.1
     bias_max: float = 0.5
@@ -203,7 +205,6 @@ class ReferenceParams:
     side_vy: float = 1.0
     tau_wheel: float = 1.0
     acc_dead: float = 3.0
-    k_lat: float = 0.5
     q_gyro_bias: float = 1.0e-9
     gyro_bias_sd: float = 0.006
     torque_dead: float = 20.0
@@ -229,7 +230,7 @@ class ReferenceParams:
 
     def __post_init__(self) -> None:
         check_ranges(self, "reference", positive=(
-            "r_wheel", "gate", "r_vy", "gate_vy", "alpha_lin", "gate_vy_sat", "pair_gap",
+            "r_wheel", "gate", "soft_gate", "r_vy", "gate_vy", "alpha_lin", "gate_vy_sat", "pair_gap",
             "k_comb", "window", "sigma_corner_slip", "sigma_gnss", "sigma_vehicle_speed",
             "fy_noise_tau", "tau_fy", "reacquire_s", "demo_tau"),
             nonnegative=[f.name for f in fields(self)])
@@ -667,6 +668,7 @@ class ReferenceKernelParams(NamedTuple):
     k_acc: float
     slip_sign: float
     gate: float
+    soft_gate: float
     r_vy: float
     k_vy: float
     bias_max: float
@@ -678,7 +680,6 @@ class ReferenceKernelParams(NamedTuple):
     side_vy: float
     tau_wheel: float
     acc_dead: float
-    k_lat: float
     q_gyro_bias: float
     gyro_bias_sd: float
     torque_dead: float
@@ -718,8 +719,9 @@ class ReferenceState(NamedTuple):
             sample, held over the prediction interval.
         n_rejected: consecutive samples with every available wheel rejected (int).
         oldest: row of ``hist`` overwritten next (int).
-        wheel_v, wheel_slip: (4,) work arrays of a sample (each wheel's CG speed, m/s, and
-            its innovation over speed); no memory from one sample to the next.
+        wheel_v, wheel_slip, wheel_sig: (4,) work arrays of a sample (each wheel's CG speed,
+            m/s, its innovation over speed, and its σ, m/s); no memory from one sample to the
+            next.
         fy_var: the online estimate of f_y's white-noise variance, (m/s²)².
         t_vy_rejected, t_speed_rejected: time (s) for which every v_y pseudo-measurement
             (counted only while the axles agree and stay below the demonstrated friction),
@@ -742,6 +744,7 @@ class ReferenceState(NamedTuple):
     oldest: np.ndarray
     wheel_v: np.ndarray
     wheel_slip: np.ndarray
+    wheel_sig: np.ndarray
     fy_var: np.ndarray
     t_vy_rejected: np.ndarray
     t_speed_rejected: np.ndarray
@@ -774,7 +777,8 @@ def new_reference_state(window: int) -> ReferenceState:
                           fx_prev=np.zeros(1), fy_prev=np.zeros(1), r_prev=np.zeros(1),
                           n_rejected=np.zeros(1, dtype=np.int64),
                           oldest=np.zeros(1, dtype=np.int64), wheel_v=np.zeros(4),
-                          wheel_slip=np.zeros(4), fy_var=np.zeros(1), t_vy_rejected=np.zeros(1),
+                          wheel_slip=np.zeros(4), wheel_sig=np.zeros(4), fy_var=np.zeros(1),
+                          t_vy_rejected=np.zeros(1),
                           t_speed_rejected=np.zeros(1), alpha_demo=np.zeros(1),
                           t_vy_unverified=np.zeros(1), work=np.zeros((2, 5)))
 
@@ -794,6 +798,7 @@ def copy_reference_state(dst: ReferenceState, src: ReferenceState) -> None:
     dst.oldest[:] = src.oldest
     dst.wheel_v[:] = src.wheel_v
     dst.wheel_slip[:] = src.wheel_slip
+    dst.wheel_sig[:] = src.wheel_sig
     dst.fy_var[:] = src.fy_var
     dst.t_vy_rejected[:] = src.t_vy_rejected
     dst.t_speed_rejected[:] = src.t_speed_rejected
@@ -814,7 +819,8 @@ def _reference_rows(prm: ReferenceKernelParams, st: ReferenceState, start: int, 
     reference (two atomic reference-count operations), and a call per sample with them
     made the batch kernel 1.5 times slower (and a call with the arrays unpacked, 2.5)."""
     (x, P, hist, t_prev, started, fx_prev, fy_prev, r_prev, n_rejected, oldest_row, wheel_v,
-     wheel_slip, fy_var, t_vy_rej, t_speed_rej, alpha_demo, t_unverified, work) = st
+     wheel_slip, wheel_sig, fy_var, t_vy_rej, t_speed_rej, alpha_demo, t_unverified,
+     work) = st
     xw, yw = prm.xw, prm.yw
     m = hist.shape[0]
     nx = x.shape[0]
@@ -918,41 +924,69 @@ def _reference_rows(prm: ReferenceKernelParams, st: ReferenceState, start: int, 
         r_w = prm.r_wheel
         sq_rw = np.sqrt(r_w)
         inflate_w = max(prm.tau_wheel / dt, 1.0) if dt > 0 else 1.0
+        # First pass: each wheel's CG speed and its σ from the slip evidence, against the
+        # predicted v_x; how many wheels agree with it within ``soft_gate`` σ.
+        vx_pred = x[VX]
+        p_pred = P[VX, VX]
+        n_agree = 0
         for i in range(4):
             if np.isnan(omega[k, i]):  # no wheel speed: no measurement (a log without them)
-                out_trust[k, i] = np.inf
                 wheel_v[i] = np.nan
+                wheel_sig[i] = np.inf
                 wheel_slip[i] = 0.0
                 continue
             available += 1
             d = delta[k, i]
             c, s = (np.cos(d), np.sin(d)) if d != 0.0 else (1.0, 0.0)
-            vxw = x[VX] - r_now * yw[i]
+            vxw = vx_pred - r_now * yw[i]
             vyw = x[VY] + r_now * xw[i]
             vyt = -vxw * s + vyw * c
             v_meas = (prm.radius * omega[k, i] * c - vyt * s + r_now * yw[i]
-                      - prm.slip_bias * mu_x[k, i] * abs(x[VX]))
+                      - prm.slip_bias * mu_x[k, i] * abs(vx_pred))
             omega_dot = (omega[k, i] - hist[oldest, 1 + i]) / span if span > 0 else 0.0
             acc_err = max(abs(prm.radius * omega_dot - f_x[k] + x[BX]) - prm.acc_dead, 0.0)
-            sig = (sq_rw + prm.k_mu * abs(mu_x[k, i]) * abs(x[VX]) + prm.k_acc * acc_err
-                   + prm.k_lat * abs(vyt))
-            innov_pred = v_meas - x[VX]
+            # The slip evidence: the expected slip's own error, ω̇ against a_x. Not the wheel's
+            # sideways speed: a tire at a slip angle keeps its longitudinal slip (a free-rolling
+            # one ≈ 0; the crossplant rear wheels −0.001 at 2° of slip angle), and v_yt comes
+            # from v̂_y, whose error then de-weighted all four wheels in a turn (x06 CG v_x
+            # 0.53 %, 0.075 % without it; with the term on driven and braked wheels only,
+            # x07 0.031 → 0.054 %, campaign brake and accelerating turns worse by 0.05–0.07).
+            sig = (sq_rw + prm.k_mu * abs(mu_x[k, i]) * abs(vx_pred) + prm.k_acc * acc_err)
+            innov_pred = v_meas - vx_pred
             tq = torque[k, i]
             if ((tq > prm.torque_dead and innov_pred > 0)
                     or (tq < -prm.torque_dead and innov_pred < 0)):
                 sig *= 1.0 + (innov_pred / prm.slip_sign) ** 2
-            # The slip part of σ is a persistent error (a slipping wheel stays slipping), so
-            # it enters with the correlation-time inflation, like the lateral model error;
-            # the gate uses the plain σ.
+            wheel_v[i] = v_meas
+            wheel_sig[i] = sig
+            wheel_slip[i] = abs(innov_pred) / max(abs(vx_pred), 1.0)
+            if innov_pred * innov_pred <= prm.soft_gate * prm.soft_gate * (p_pred + sig * sig):
+                n_agree += 1
+        # Second pass: the updates. The slip part of σ is a persistent error (a slipping
+        # wheel stays slipping), so it enters with the correlation-time inflation, like the
+        # lateral model error; the gate uses the plain σ. A wheel beyond ``soft_gate`` σ
+        # while another wheel agrees with v_x is the odd one out (a spinning wheel at the
+        # turn of its oscillation shows no torque or ω̇ evidence for a moment): its excess
+        # innovation enters as slip, with the same inflation.
+        for i in range(4):
+            if np.isnan(wheel_v[i]):
+                out_trust[k, i] = np.inf
+                continue
+            sig = wheel_sig[i]
             slip_part = sig - sq_rw
-            wheel_slip[i] = abs(innov_pred) / max(abs(x[VX]), 1.0)
+            innov_0 = wheel_v[i] - vx_pred
+            s_0 = prm.soft_gate * prm.soft_gate * (p_pred + sig * sig)
+            if innov_0 * innov_0 > s_0 and n_agree > 0:
+                soft = np.sqrt(max(innov_0 * innov_0 / (prm.soft_gate * prm.soft_gate)
+                                   - p_pred, 0.0))
+                slip_part = max(slip_part, soft - sq_rw)
+            innov_pred = wheel_v[i] - x[VX]
             if innov_pred * innov_pred > prm.gate * prm.gate * (P[VX, VX] + sig * sig):
                 res = np.nan
             else:
-                res = _direct_update(x, P, VX, v_meas,
+                res = _direct_update(x, P, VX, wheel_v[i],
                                      r_w + slip_part * slip_part * inflate_w, np.inf, work)
             out_trust[k, i] = np.inf if np.isnan(res) else sig
-            wheel_v[i] = v_meas
             if not np.isnan(res):
                 accepted += 1
         # Recovery: every wheel rejected although none shows evidence of slip means the
