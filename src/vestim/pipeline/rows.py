@@ -35,6 +35,9 @@ from vestim.estimators import registry
 from vestim.estimators.force.estimator import (
     AX_TAU,
     AX_TAU_SPARSE,
+    LoadFilterState,
+    SpeedDerivativeState,
+    SpeedHoldState,
     load_specific_force,
     normalised,
     speed_derivative,
@@ -54,6 +57,7 @@ from vestim.estimators.force.longitudinal import (
 )
 from vestim.estimators.force.normal import (
     AttitudeKernelParams,
+    AttitudeState,
     NormalLoadKernelParams,
     attitude_kernel,
     normal_load_params,
@@ -92,7 +96,7 @@ from vestim.estimators.velocity.corner_common import (
     CornerParams,
     CornerState,
 )
-from vestim.estimators.velocity.kinematic import kinematic_kernel
+from vestim.estimators.velocity.kinematic import KinematicState, kinematic_kernel
 from vestim.estimators.velocity.reference import (
     RadiusKernelParams,
     RadiusState,
@@ -239,14 +243,14 @@ class ForceParams(NamedTuple):
 class ForceState(NamedTuple):
     """The force stage's states (shared with :class:`~vestim.estimators.force.ForceEstimator`)."""
 
-    attitude: np.ndarray
+    attitude: AttitudeState
     lon: LongitudinalState
     lateral: LateralState
-    ax_state: np.ndarray  # the wheel-speed a_x's filter (logs without ax)
+    ax_state: SpeedDerivativeState  # the wheel-speed a_x's filter (logs without ax)
     inertia: LongitudinalState  # the longitudinal method on zero torque: the chassis
     # torques' ω̇ (logs without torques)
-    hold_state: np.ndarray  # the speed between gnss_speed fixes (logs without wheel speeds)
-    load_filter: np.ndarray  # load_specific_force's (4, N_LOWPASS)
+    hold_state: SpeedHoldState  # the speed between gnss_speed fixes (logs without wheel speeds)
+    load_filter: LoadFilterState  # load_specific_force's
 
 
 class VelocityParams(NamedTuple):
@@ -289,7 +293,7 @@ class VelocityState(NamedTuple):
     fused: ReferenceState
     prev: np.ndarray
     corner: CornerState
-    kinematic: np.ndarray  # the kinematic integrator's state
+    kinematic: KinematicState  # the kinematic integrator's state
     seeded: np.ndarray  # (1,) 1.0 once the corner observers took the reference's velocity
 
 

@@ -74,8 +74,6 @@ _JIT: dict[str, Any] = {"cache": True, "error_model": "numpy"}
 FYF, FYR, DFYF, YAW = 0, 1, 2, 3
 N_X = 4
 N_Y = 4
-N_STATE = 15
-"""Length of the kernel's carried state (see :func:`lateral_kernel`)."""
 
 
 @dataclass(frozen=True)
@@ -210,17 +208,40 @@ class LateralKernelParams(NamedTuple):
 
 
 class LateralState(NamedTuple):
-    """:func:`lateral_kernel`'s state: ``x`` (:data:`N_X`,), ``P`` (N_X, N_X), ``state``
-    (:data:`N_STATE`,) (see there); :func:`new_lateral_state` makes a fresh one."""
+    """:func:`lateral_kernel`'s state (in place); :func:`new_lateral_state` makes a fresh one.
+
+    Attributes:
+        x: (:data:`N_X`,) the UKF's state [F_yf, F_yr, ΔF_yf, r] (N, N, N, rad/s).
+        P: (N_X, N_X) its covariance.
+        t_prev: (1,) time of the previous sample, s.
+        started: (1,) 1.0 once the first sample started the filter.
+        fx_prev: (4,) F_x of the previous sample, N, and ``delta_prev`` (4,) its road-wheel
+            angles, rad: held over the interval.
+        nu_balance, nu_yaw: (1,) the running means ν̄ of the normalised lateral-balance and
+            yaw-rate innovations.
+        walk_factor: (1,) the factor on the force random walk (1 + (ν̄/ν_0)², capped).
+        fy_offset: (1,) the offset b̂ of f_y, m/s².
+        elapsed: (1,) time since the start, s.
+    """
 
     x: np.ndarray
     P: np.ndarray
-    state: np.ndarray
+    t_prev: np.ndarray
+    started: np.ndarray
+    fx_prev: np.ndarray
+    delta_prev: np.ndarray
+    nu_balance: np.ndarray
+    nu_yaw: np.ndarray
+    walk_factor: np.ndarray
+    fy_offset: np.ndarray
+    elapsed: np.ndarray
 
 
 def new_lateral_state() -> LateralState:
     """A fresh :class:`LateralState` (the next sample initialises the filter)."""
-    return LateralState(np.zeros(N_X), np.zeros((N_X, N_X)), np.zeros(N_STATE))
+    return LateralState(np.zeros(N_X), np.zeros((N_X, N_X)), np.zeros(1), np.zeros(1),
+                        np.zeros(4), np.zeros(4), np.zeros(1), np.zeros(1), np.zeros(1),
+                        np.zeros(1), np.zeros(1))
 
 
 @njit(**_JIT)
@@ -228,7 +249,7 @@ def lateral_kernel(p: LateralKernelParams, s: LateralState, t: np.ndarray, fx: n
                    delta: np.ndarray, weights: np.ndarray, f_x: np.ndarray, f_y: np.ndarray,
                    yaw_rate: np.ndarray, noise: np.ndarray, drag: np.ndarray, fz: np.ndarray,
                    speed: np.ndarray, fy_out: np.ndarray, sig_out: np.ndarray) -> None:
-    """Advance the lateral-force UKF over a chunk (in place on ``s``: x (4,), P (4, 4), state).
+    """Advance the lateral-force UKF over a chunk (in place on ``s``, :class:`LateralState`).
 
     Inputs per sample: fx (n, 4) tire-frame longitudinal forces, delta (n, 4)
     road-wheel angles (rear 0), weights (n, 4) lateral-capacity weights of
@@ -238,14 +259,11 @@ def lateral_kernel(p: LateralKernelParams, s: LateralState, t: np.ndarray, fx: n
     ``r_diag`` where they exceed it (the log's own sensors, e.g. a vibrating IMU or a gyro
     noisier than the configured one), drag (N), fz (n, 4) normal loads (N), speed
     (n,) a wheel-speed reference of v_x (m/s). ``q`` from :func:`lateral_q`.
-    ``state`` (:data:`N_STATE`,) = [t_prev, started, F_x (4) and δ (4) of the previous
-    sample, held over the interval, ν̄ of the lateral balance, ν̄ of the yaw rate, factor
-    on the force random walk, offset b̂ of f_y (m/s²), time since the start (s)].
     Outputs: fy_out (n, 4) tire-frame lateral force per corner, sig_out (n, 4) one-sigma.
     """
     mass, iz, xw, yw, q, r_diag = p.mass, p.iz, p.xw, p.yw, p.q, p.r_diag
     wm, wc, tau = p.wm, p.wc, p.tau
-    x, P, state = s.x, s.P, s.state
+    x, P = s.x, s.P
     n = t.shape[0]
     npts = 2 * N_X + 1
     pts = np.empty((npts, N_X))
@@ -260,15 +278,15 @@ def lateral_kernel(p: LateralKernelParams, s: LateralState, t: np.ndarray, fx: n
     H = np.empty((N_Y, N_X))
     cd_now = np.empty(4)
     sd_now = np.empty(4)
-    cd_prev = np.cos(state[6:10])
-    sd_prev = np.sin(state[6:10])
+    cd_prev = np.cos(s.delta_prev)
+    sd_prev = np.sin(s.delta_prev)
     y = np.empty(N_Y)
     for k in range(n):
         wr_sum = weights[k, 2] + weights[k, 3]
         rear_w = weights[k, 2] / wr_sum if wr_sum > 0 else 0.5
         wf_sum = weights[k, 0] + weights[k, 1]
         rho = (weights[k, 1] - weights[k, 0]) / wf_sum if wf_sum > 0 else 0.0
-        if state[1] == 0.0:
+        if s.started[0] == 0.0:
             x[:] = 0.0
             x[YAW] = yaw_rate[k]
             P[:, :] = 0.0
@@ -276,24 +294,24 @@ def lateral_kernel(p: LateralKernelParams, s: LateralState, t: np.ndarray, fx: n
             P[FYR, FYR] = 1.0e6
             P[DFYF, DFYF] = 1.0e5
             P[YAW, YAW] = r_diag[2]
-            state[1] = 1.0
-            state[10] = 0.0
-            state[11] = 0.0
-            state[12] = 1.0
-            state[13] = 0.0
-            state[14] = 0.0
+            s.started[0] = 1.0
+            s.nu_balance[0] = 0.0
+            s.nu_yaw[0] = 0.0
+            s.walk_factor[0] = 1.0
+            s.fy_offset[0] = 0.0
+            s.elapsed[0] = 0.0
         else:
-            dt = t[k] - state[0]
-            state[14] += dt
+            dt = t[k] - s.t_prev[0]
+            s.elapsed[0] += dt
             # Prediction: forces random walk, yaw rate by the yaw moment (001 eq. (9)).
             sigma_points(x, P, tau, L, pts)
             for i in range(npts):
-                _, _, mz = _body_forces(pts[i], state[2:6], cd_prev, sd_prev, rear_w, xw, yw)
+                _, _, mz = _body_forces(pts[i], s.fx_prev, cd_prev, sd_prev, rear_w, xw, yw)
                 pts[i, YAW] += dt * mz / iz
             weighted_mean(pts, wm, xm)
             weighted_cross(pts, xm, pts, xm, wc, Pm)
             for j in range(N_X):
-                Pm[j, j] += q[j] * dt * (state[12] if j < 2 else 1.0)
+                Pm[j, j] += q[j] * dt * (s.walk_factor[0] if j < 2 else 1.0)
             # Update with [m f_x + drag, m f_y, r, 0]. The measurement is affine in
             # the state, y = H x + h0, so the sigma-point sums of the update equal
             # H P̄ Hᵀ and P̄ Hᵀ exactly; they are evaluated in that closed form.
@@ -339,7 +357,7 @@ def lateral_kernel(p: LateralKernelParams, s: LateralState, t: np.ndarray, fx: n
             Pyy[2, 2] += max(r_diag[2], noise[3, k])
             Pyy[3, 3] += r_diag[3]
             y[0] = mass * f_x[k] + drag[k] - ym[0]
-            y[1] = mass * (f_y[k] - state[13]) - ym[1]
+            y[1] = mass * (f_y[k] - s.fy_offset[0]) - ym[1]
             y[2] = yaw_rate[k] - ym[2]
             y[3] = -ym[3]
             if q[8] > 0.0:
@@ -366,10 +384,10 @@ def lateral_kernel(p: LateralKernelParams, s: LateralState, t: np.ndarray, fx: n
             # drift, and the intensity grows as 1 + (ν̄/ν_0)² (capped) for the next step.
             if q[4] > 0.0:
                 a_nu = min(dt / q[4], 1.0)
-                state[10] += a_nu * (y[1] / np.sqrt(Pyy[1, 1]) - state[10])
-                state[11] += a_nu * (y[2] / np.sqrt(Pyy[2, 2]) - state[11])
-                nu2 = max(state[10] * state[10], state[11] * state[11])
-                state[12] = min(1.0 + nu2 / (q[5] * q[5]), q[6])
+                s.nu_balance[0] += a_nu * (y[1] / np.sqrt(Pyy[1, 1]) - s.nu_balance[0])
+                s.nu_yaw[0] += a_nu * (y[2] / np.sqrt(Pyy[2, 2]) - s.nu_yaw[0])
+                nu2 = max(s.nu_balance[0] * s.nu_balance[0], s.nu_yaw[0] * s.nu_yaw[0])
+                s.walk_factor[0] = min(1.0 + nu2 / (q[5] * q[5]), q[6])
             x[:] = xm
             P[:, :] = Pm
             ukf_update(x, P, Pxy, Pyy, y, Ly, K)  # K = Pxy Pyy⁻¹, x̂ += K ν, P −= K Pxyᵀ
@@ -380,13 +398,13 @@ def lateral_kernel(p: LateralKernelParams, s: LateralState, t: np.ndarray, fx: n
             # its running mean (memory min(max(elapsed, 1 s), bias_tau)) is removed.
             # A slide (sustained v̇_y) or a spinning wheel in the speed reference makes
             # f_y − r v large: a Cauchy weight (scale ``bias_scale``) leaves such samples out.
-            mem = min(max(state[14], 1.0), q[7])
-            g_b = min((t[k] - state[0]) / mem if state[14] > 0.0 else 0.0, 1.0)
-            e_b = f_y[k] - yaw_rate[k] * speed[k] - state[13]
-            state[13] += g_b * e_b / (1.0 + (e_b / q[9]) ** 2)
-        state[0] = t[k]
-        state[2:6] = fx[k]  # held over the next interval
-        state[6:10] = delta[k]
+            mem = min(max(s.elapsed[0], 1.0), q[7])
+            g_b = min((t[k] - s.t_prev[0]) / mem if s.elapsed[0] > 0.0 else 0.0, 1.0)
+            e_b = f_y[k] - yaw_rate[k] * speed[k] - s.fy_offset[0]
+            s.fy_offset[0] += g_b * e_b / (1.0 + (e_b / q[9]) ** 2)
+        s.t_prev[0] = t[k]
+        s.fx_prev[:] = fx[k]  # held over the next interval
+        s.delta_prev[:] = delta[k]
         for i in range(4):
             cd_prev[i] = np.cos(delta[k, i])
             sd_prev[i] = np.sin(delta[k, i])
