@@ -673,11 +673,11 @@ class ForceEstimator:
         self._yw = 0.5 * np.array([b.track_f, -b.track_f, b.track_r, -b.track_r])
         wm, wc, tau = ukf_weights(4)
         lp = self.config.lateral
-        self.lateral_params = lat.LateralKernelParams(
-            float(b.mass), float(b.yaw_inertia), self._xw, self._yw,
-            lat.lateral_q(lp, vehicle.tire.sigma0_y / vehicle.tire.kappa_y),
+        self.lateral_params = lat.lateral_params(
+            lp, b.mass, b.yaw_inertia, self._xw, self._yw,
+            vehicle.tire.sigma0_y / vehicle.tire.kappa_y,
             np.array([(b.mass * lp.sigma_ax) ** 2, (b.mass * lp.sigma_ay) ** 2,
-                      lp.sigma_yaw**2, lp.sigma_split**2]), wm, wc, float(tau))
+                      lp.sigma_yaw**2, lp.sigma_split**2]), wm, wc, tau)
         """The lateral-force UKF's parameters (:func:`~.lateral.lateral_kernel`)."""
         a = vehicle.stated_aerodynamics
         self._drag_coef = 0.5 * a.air_density * a.drag_area
