@@ -56,6 +56,7 @@ from vestim.estimators.force.longitudinal import (
     longitudinal_rows,
 )
 from vestim.estimators.force.normal import (
+    DYNAMIC,
     AttitudeKernelParams,
     AttitudeState,
     NormalLoadKernelParams,
@@ -955,9 +956,9 @@ def build(pipe: Pipeline, names: tuple[str, ...], sensors: Sensors) -> tuple[Par
     force_p = ForceParams(
         float(b.wheel_radius), float(fe.rolling_resistance * b.wheel_radius),
         float(fe._drag_coef), float(lp.load_exponent), float(lp.slip_scale),
-        normal_load_params(veh), fe.config.normal == "dynamic", fe._att_prm, lon.params,
-        fe._xw, fe._yw, fe.lateral_params, chassis_params(veh), fe.load_filter_params,
-        fe.config.load_filter.enabled)
+        normal_load_params(veh), registry.lookup("normal", fe.config.normal).code == DYNAMIC,
+        fe._att_prm, lon.params, fe._xw, fe._yw, fe.lateral_params, chassis_params(veh),
+        fe.load_filter_params, fe.config.load_filter.enabled)
     inertia = fe._lon_inertia  # the same method and parameters as lon, its own state
     force_s = ForceState(fe._att, lon.state, fe.lateral_state, fe._ax_state, inertia.state,
                          fe._hold_state, fe.load_filter_state)

@@ -31,15 +31,31 @@ from typing import Any, NamedTuple
 import numpy as np
 from numba import njit
 
+from vestim.estimators.registry import register, registered
 from vestim.filters.ukf import sigma_points, ukf_weights
 from vestim.io.vehicle import Vehicle
 from vestim.params import check_ranges, pack
 
 _JIT: dict[str, Any] = {"cache": True, "error_model": "numpy"}
 
-METHODS: tuple[str, ...] = ("ukf", "ukf_rw", "pid", "uio", "naive")
-UKF, UKF_RW, PID, UIO, NAIVE = range(len(METHODS))
-"""The methods' codes (their index in :data:`METHODS`, the order the registry lists them)."""
+register("force", "ukf", "UKF on the wheel dynamics with the torque filtered as a state and "
+         "covariance switching on high wheel acceleration", default=True,
+         cite="000 eq. (10)–(12), 004 eq. (1)–(5), Sec. II-A", tables=("force_params",),
+         outputs=("sigma_fx",))
+register("force", "ukf_rw", "the papers' UKF exactly: x = [ω, F_x], F_x a random walk",
+         cite="000 eq. (10)–(12), 004 eq. (1)–(5)", tables=("force_params",),
+         outputs=("sigma_fx",))
+register("force", "pid", "PID observer of the wheel dynamics", cite="001 eq. (2)–(5)",
+         tables=("force_params",))
+register("force", "uio", "unknown-input observer of the wheel dynamics", cite="000 eq. (2)–(3)",
+         tables=("force_params",))
+register("force", "naive", "finite-difference floor F_x = (T − I_w Δω/Δt)/R_e")
+_REGISTERED = registered("force")
+METHODS: tuple[str, ...] = tuple(_REGISTERED)
+"""The methods' names, in the registry's order."""
+UKF, UKF_RW, PID, UIO, NAIVE = (_REGISTERED[name].code
+                                for name in ("ukf", "ukf_rw", "pid", "uio", "naive"))
+"""The methods' registry codes (what :func:`longitudinal_rows` dispatches on)."""
 
 
 # ----------------------------------------------------------------------------- UKF
@@ -655,7 +671,7 @@ def naive_kernel(t: np.ndarray, omega: np.ndarray, torque: np.ndarray, iw: float
 
 class LongitudinalParams(NamedTuple):
     """Every longitudinal method's parameters, whole (SI), and which one runs: ``method`` its
-    index in :data:`METHODS` (the code :func:`longitudinal_rows` dispatches on)."""
+    registry code (:data:`UKF` …, what :func:`longitudinal_rows` dispatches on)."""
 
     method: int
     iw: float  # wheel inertia, kg m²
@@ -726,17 +742,19 @@ class LongitudinalEstimator:
         if method not in METHODS:
             raise ValueError(f"longitudinal force method {method!r}: use one of {', '.join(METHODS)}")
         self.method = method
+        self.code = _REGISTERED[method].code
+        """The method's registry code."""
         self.iw = vehicle.body.wheel_inertia
         self.radius = vehicle.body.wheel_radius
         self.ukf = ukf or UKFParams()
         self.kernel_params = ukf_params(self.ukf, self.iw, self.radius)
         self.pid = pid or PIDParams()
         self.uio = uio or UIOParams()
-        dim = 3 if method == "ukf" else 2
+        dim = 3 if self.code == UKF else 2
         wm, wc, tau = ukf_weights(dim)
         u, pid, uio = self.ukf, self.pid, self.uio
         self.params = LongitudinalParams(
-            METHODS.index(method), float(self.iw), float(self.radius), self.kernel_params,
+            self.code, float(self.iw), float(self.radius), self.kernel_params,
             float(u.r_omega), float(u.r_torque), float(u.q_force), float(u.q_force_high),
             float(u.omega_dot_high), float(u.p0_force), float(pid.eta1), float(pid.eta2),
             float(pid.eta3), float(uio.kp), float(uio.f0), wm, wc, float(tau))
@@ -745,12 +763,12 @@ class LongitudinalEstimator:
     def reset(self) -> None:
         """Forget the state; the next sample initialises it."""
         window = self.ukf.omega_dot_window
-        dim = 3 if self.method == "ukf" else 2
+        dim = 3 if self.code == UKF else 2
         prev = np.zeros((3, 4))
         prev[0] = np.nan  # "no previous sample" (read by the naive kernel)
         # ukf: columns 3.. of x hold the switches' and noise trackers' state (X_* constants)
         self.state = LongitudinalState(
-            x=np.zeros((4, UKF_COLS if self.method == "ukf" else dim)),
+            x=np.zeros((4, UKF_COLS if self.code == UKF else dim)),
             P=np.zeros((4, dim, dim)), hist_t=np.full(window, np.nan),
             hist_w=np.zeros((window, 4)), prev_torque=np.zeros(4), state=np.zeros((3, 4)),
             prev=prev)

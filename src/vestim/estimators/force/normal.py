@@ -43,13 +43,25 @@ import numpy as np
 from numba import njit
 
 from vestim.constants import G
+from vestim.estimators.registry import register, registered
 from vestim.io.vehicle import Vehicle
 from vestim.models.kinematics import euler_rates, middle_wheel_speed
 from vestim.params import pack
 
 _JIT: dict[str, Any] = {"cache": True, "error_model": "numpy"}
 
-MODES: tuple[str, ...] = ("static", "dynamic")
+register("normal", "static", "load transfer with the quasi-static elastic roll moment "
+         "m (h − h_rc)(f_y + f_z sin φ)", default=True,
+         cite="001 eq. (15) (our corrected form of 000 eq. (14), 001 eq. (17))",
+         tables=("force_params",), needs_wheel_speeds=False)
+register("normal", "dynamic", "load transfer with the roll moment of the suspension states "
+         "k_φ φ̂ + c_φ p", cite="001 eq. (15)–(17), 000 Sec. II-B",
+         tables=("force_params",), needs_wheel_speeds=False)
+_REGISTERED = registered("normal")
+MODES: tuple[str, ...] = tuple(_REGISTERED)
+"""The normal-load models' names, in the registry's order."""
+STATIC, DYNAMIC = (_REGISTERED[name].code for name in ("static", "dynamic"))
+"""The normal-load models' registry codes."""
 
 
 class AttitudeKernelParams(NamedTuple):
@@ -415,7 +427,8 @@ def normal_loads(f_x: np.ndarray, f_y: np.ndarray, f_z: np.ndarray, roll: np.nda
     arrays = [np.ascontiguousarray(a, dtype=float) for a in (f_x, f_y, f_z, roll, pitch,
                                                               roll_rate, pitch_rate, roll_acc,
                                                               pitch_acc)]
-    return normal_loads_kernel(*arrays, normal_load_params(vehicle), mode == "dynamic")
+    return normal_loads_kernel(*arrays, normal_load_params(vehicle),
+                               _REGISTERED[mode].code == DYNAMIC)
 
 
 def normal_loads_paper(ax: np.ndarray, ay: np.ndarray, az: np.ndarray, roll: np.ndarray,
