@@ -560,9 +560,49 @@ class PIDParams:
         check_ranges(self, "force_params.pid", positive=("eta1", "eta2", "eta3"))
 
 
+class ObserverState(NamedTuple):
+    """The PID and UIO observers' state per corner (in place), each field (4,);
+    :func:`new_observer_state` makes a fresh one.
+
+    Attributes:
+        omega_hat: the observer's wheel speed ω̂, rad/s.
+        force: the PID observer's integral part F_c, N (the UIO has none).
+        started: 1.0 once the corner's first sample started the observer.
+    """
+
+    omega_hat: np.ndarray
+    force: np.ndarray
+    started: np.ndarray
+
+
+def new_observer_state() -> ObserverState:
+    """A fresh :class:`ObserverState` (the next sample starts every corner)."""
+    return ObserverState(np.zeros(4), np.zeros(4), np.zeros(4))
+
+
+class PreviousSample(NamedTuple):
+    """The previous sample per corner, each field (4,), held by the PID, UIO and naive
+    kernels; :func:`new_previous_sample` makes a fresh one.
+
+    Attributes:
+        t: its time, s (NaN before the first sample: the naive kernel's "none").
+        omega: its wheel speed, rad/s.
+        torque: its net wheel torque, N m.
+    """
+
+    t: np.ndarray
+    omega: np.ndarray
+    torque: np.ndarray
+
+
+def new_previous_sample() -> PreviousSample:
+    """A fresh :class:`PreviousSample` (``t`` NaN: no previous sample)."""
+    return PreviousSample(np.full(4, np.nan), np.zeros(4), np.zeros(4))
+
+
 @njit(**_JIT)
 def pid_kernel(t: np.ndarray, omega: np.ndarray, torque: np.ndarray, iw: float, radius: float,
-               eta1: float, eta2: float, eta3: float, state: np.ndarray, prev: np.ndarray,
+               eta1: float, eta2: float, eta3: float, obs: ObserverState, prev: PreviousSample,
                fx: np.ndarray) -> None:
     """PID observer of 001 eq. (2)–(5), advanced in place over a chunk of samples.
 
@@ -574,28 +614,30 @@ def pid_kernel(t: np.ndarray, omega: np.ndarray, torque: np.ndarray, iw: float, 
     F_m being "the updated measurement at the current time step" of 001 Sec. III-A.
     Then e_F = F − F̂ obeys ė_F = −η3 e_F + Ω̇_f once e_ω has settled (eq. (8)).
 
-    ``state`` (3, 4): rows ω̂, F_c, started-flag; ``prev`` (3, 4): rows t, ω, T of
-    the previous sample.
+    ``obs``: ω̂, F_c and the started flags (:class:`ObserverState`); ``prev`` the previous
+    sample (:class:`PreviousSample`).
     """
     n = t.shape[0]
+    w_hat, f_c, started = obs.omega_hat, obs.force, obs.started
+    t_prev, w_prev, tq_prev = prev.t, prev.omega, prev.torque
     for k in range(n):
         for c in range(4):
-            if state[2, c] == 0.0:
-                state[0, c] = omega[k, c]
-                state[1, c] = 0.0
-                state[2, c] = 1.0
+            if started[c] == 0.0:
+                w_hat[c] = omega[k, c]
+                f_c[c] = 0.0
+                started[c] = 1.0
                 fx[k, c] = 0.0
             else:
-                dt = t[k] - prev[0, c]
-                f_meas = (prev[2, c] - iw * (omega[k, c] - prev[1, c]) / dt) / radius
-                e_prev = prev[1, c] - state[0, c]
-                f_hat = state[1, c] - eta1 * e_prev
-                state[0, c] += dt / iw * (prev[2, c] - radius * f_hat + eta2 * e_prev)
-                state[1, c] += dt * eta3 * (f_meas - f_hat)
-                fx[k, c] = state[1, c] - eta1 * (omega[k, c] - state[0, c])
-            prev[0, c] = t[k]
-            prev[1, c] = omega[k, c]
-            prev[2, c] = torque[k, c]
+                dt = t[k] - t_prev[c]
+                f_meas = (tq_prev[c] - iw * (omega[k, c] - w_prev[c]) / dt) / radius
+                e_prev = w_prev[c] - w_hat[c]
+                f_hat = f_c[c] - eta1 * e_prev
+                w_hat[c] += dt / iw * (tq_prev[c] - radius * f_hat + eta2 * e_prev)
+                f_c[c] += dt * eta3 * (f_meas - f_hat)
+                fx[k, c] = f_c[c] - eta1 * (omega[k, c] - w_hat[c])
+            t_prev[c] = t[k]
+            w_prev[c] = omega[k, c]
+            tq_prev[c] = torque[k, c]
 
 
 # ------------------------------------------------------------ unknown-input observer
@@ -616,7 +658,8 @@ class UIOParams:
 
 @njit(**_JIT)
 def uio_kernel(t: np.ndarray, omega: np.ndarray, torque: np.ndarray, iw: float, radius: float,
-               kp: float, f0: float, state: np.ndarray, prev: np.ndarray, fx: np.ndarray) -> None:
+               kp: float, f0: float, obs: ObserverState, prev: PreviousSample,
+               fx: np.ndarray) -> None:
     """Unknown-input observer of 000 eq. (2)–(3), advanced in place over a chunk.
 
     Virtual wheel speed I_w dω̂/dt = T − R_e f0 + K_p ω̃ with ω̃ = ω − ω̂, and
@@ -626,48 +669,52 @@ def uio_kernel(t: np.ndarray, omega: np.ndarray, torque: np.ndarray, iw: float, 
     (for ω̂̇ = −a(ω̂ − g(t)), g = g0 + s t: ω̂(Δt) = g(Δt) − s/a + (ω̂0 − g0 + s/a) e^{−aΔt}),
     so a constant force is recovered exactly.
 
-    ``state`` (2, 4): rows ω̂, started-flag; ``prev`` (3, 4): rows t, T, ω of the previous sample.
+    ``obs``: ω̂ and the started flags (:class:`ObserverState`; ``force`` unused); ``prev`` the
+    previous sample (:class:`PreviousSample`).
     """
     n = t.shape[0]
     a = kp / iw
+    w_hat, started = obs.omega_hat, obs.started
+    t_prev, w_prev, tq_prev = prev.t, prev.omega, prev.torque
     for k in range(n):
         for c in range(4):
-            if state[1, c] == 0.0:
-                state[0, c] = omega[k, c]
-                state[1, c] = 1.0
+            if started[c] == 0.0:
+                w_hat[c] = omega[k, c]
+                started[c] = 1.0
             else:
-                dt = t[k] - prev[0, c]
-                offset = (prev[1, c] - radius * f0) / kp
-                g0 = prev[2, c] + offset
-                slope = (omega[k, c] - prev[2, c]) / dt
+                dt = t[k] - t_prev[c]
+                offset = (tq_prev[c] - radius * f0) / kp
+                g0 = w_prev[c] + offset
+                slope = (omega[k, c] - w_prev[c]) / dt
                 g1 = omega[k, c] + offset
                 decay = np.exp(-a * dt)
-                state[0, c] = g1 - slope / a + (state[0, c] - g0 + slope / a) * decay
-            fx[k, c] = f0 - kp * (omega[k, c] - state[0, c]) / radius
-            prev[0, c] = t[k]
-            prev[1, c] = torque[k, c]
-            prev[2, c] = omega[k, c]
+                w_hat[c] = g1 - slope / a + (w_hat[c] - g0 + slope / a) * decay
+            fx[k, c] = f0 - kp * (omega[k, c] - w_hat[c]) / radius
+            t_prev[c] = t[k]
+            tq_prev[c] = torque[k, c]
+            w_prev[c] = omega[k, c]
 
 
 # ----------------------------------------------------------------------- naive floor
 @njit(**_JIT)
 def naive_kernel(t: np.ndarray, omega: np.ndarray, torque: np.ndarray, iw: float, radius: float,
-                 prev: np.ndarray, fx: np.ndarray) -> None:
+                 prev: PreviousSample, fx: np.ndarray) -> None:
     """The floor to beat: F_x = (T − I_w Δω/Δt)/R_e with a backward difference, in place.
 
-    ``prev`` (3, 4): rows t, T, ω of the previous sample (t NaN before the first
+    ``prev``: the previous sample (:class:`PreviousSample`; ``t`` NaN before the first
     sample, which gets the torque alone).
     """
+    t_prev, w_prev, tq_prev = prev.t, prev.omega, prev.torque
     for k in range(t.shape[0]):
         for c in range(4):
-            if np.isnan(prev[0, c]):
+            if np.isnan(t_prev[c]):
                 fx[k, c] = torque[k, c] / radius
             else:
-                dt = t[k] - prev[0, c]
-                fx[k, c] = (prev[1, c] - iw * (omega[k, c] - prev[2, c]) / dt) / radius
-            prev[0, c] = t[k]
-            prev[1, c] = torque[k, c]
-            prev[2, c] = omega[k, c]
+                dt = t[k] - t_prev[c]
+                fx[k, c] = (tq_prev[c] - iw * (omega[k, c] - w_prev[c]) / dt) / radius
+            t_prev[c] = t[k]
+            tq_prev[c] = torque[k, c]
+            w_prev[c] = omega[k, c]
 
 class LongitudinalParams(NamedTuple):
     """Every longitudinal method's parameters, whole (SI), and which one runs: ``method`` its
@@ -695,16 +742,16 @@ class LongitudinalParams(NamedTuple):
 
 class LongitudinalState(NamedTuple):
     """The longitudinal methods' states: the UKFs' ``x``, ``P`` and ω̇ window (``hist_t``,
-    ``hist_w``), ukf_rw's previous torque, the observers' ``state`` (3, 4) and the previous
-    sample ``prev`` (3, 4: t, T, ω; t NaN before the first)."""
+    ``hist_w``), ukf_rw's previous torque, the PID and UIO observers' ``observer`` and the
+    previous sample ``prev`` of the PID, UIO and naive kernels."""
 
     x: np.ndarray
     P: np.ndarray
     hist_t: np.ndarray
     hist_w: np.ndarray
     prev_torque: np.ndarray
-    state: np.ndarray
-    prev: np.ndarray
+    observer: ObserverState
+    prev: PreviousSample
 
 
 @njit(**_JIT)
@@ -721,9 +768,10 @@ def longitudinal_rows(p: LongitudinalParams, s: LongitudinalState, t: np.ndarray
     elif m == UKF_RW:
         ukf_rw_kernel(p, s, t, omega, torque, fx, sigma, np.empty(fx.shape, dtype=np.bool_))
     elif m == PID:
-        pid_kernel(t, omega, torque, p.iw, p.radius, p.eta1, p.eta2, p.eta3, s.state, s.prev, fx)
+        pid_kernel(t, omega, torque, p.iw, p.radius, p.eta1, p.eta2, p.eta3, s.observer, s.prev,
+                   fx)
     elif m == UIO:
-        uio_kernel(t, omega, torque, p.iw, p.radius, p.kp, p.f0, s.state[:2], s.prev, fx)
+        uio_kernel(t, omega, torque, p.iw, p.radius, p.kp, p.f0, s.observer, s.prev, fx)
     else:
         naive_kernel(t, omega, torque, p.iw, p.radius, s.prev, fx)
 
@@ -764,14 +812,12 @@ class LongitudinalEstimator:
         """Forget the state; the next sample initialises it."""
         window = self.ukf.omega_dot_window
         dim = 3 if self.code == UKF else 2
-        prev = np.zeros((3, 4))
-        prev[0] = np.nan  # "no previous sample" (read by the naive kernel)
         # ukf: columns 3.. of x hold the switches' and noise trackers' state (X_* constants)
         self.state = LongitudinalState(
             x=np.zeros((4, UKF_COLS if self.code == UKF else dim)),
             P=np.zeros((4, dim, dim)), hist_t=np.full(window, np.nan),
-            hist_w=np.zeros((window, 4)), prev_torque=np.zeros(4), state=np.zeros((3, 4)),
-            prev=prev)
+            hist_w=np.zeros((window, 4)), prev_torque=np.zeros(4),
+            observer=new_observer_state(), prev=new_previous_sample())
 
     def advance(self, t: np.ndarray, omega: np.ndarray,
                 torque: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
