@@ -28,6 +28,8 @@ from vestim.errors import LogFormatError
 from vestim.estimators.force.estimator import (
     AX_TAU,
     AX_TAU_SPARSE,
+    new_speed_derivative_state,
+    new_speed_hold_state,
     speed_derivative,
     speed_hold,
 )
@@ -362,7 +364,7 @@ def test_speed_derivative_of_a_ramp_is_its_slope(slope: float, v0: float, rate: 
     t = np.arange(0.0, 10.0, 1.0 / rate)
     out = np.empty_like(t)
     tau = AX_TAU if rate > 10.0 else AX_TAU_SPARSE
-    speed_derivative(t, v0 + slope * t, tau[0], tau[1], np.zeros(4), out)
+    speed_derivative(t, v0 + slope * t, tau[0], tau[1], new_speed_derivative_state(), out)
     assert out[-1] == pytest.approx(slope, abs=1e-6)
 
 
@@ -375,9 +377,9 @@ def test_speed_kernels_do_not_depend_on_the_chunking(split: int, seed: int) -> N
     v = np.where(rng.random(200) < 0.1, 10.0 + rng.normal(0.0, 1.0, 200), np.nan)
     ax = rng.normal(0.0, 1.0, 200)
     whole_a, parts_a, whole_h, parts_h = np.empty((4, 200))
-    speed_derivative(t, v, 0.0, 0.5, np.zeros(4), whole_a)
-    speed_hold(t, v, ax, np.zeros(3), whole_h)
-    sa, sh = np.zeros(4), np.zeros(3)
+    speed_derivative(t, v, 0.0, 0.5, new_speed_derivative_state(), whole_a)
+    speed_hold(t, v, ax, new_speed_hold_state(), whole_h)
+    sa, sh = new_speed_derivative_state(), new_speed_hold_state()
     for a, b in ((0, split), (split, 200)):
         speed_derivative(t[a:b], v[a:b], 0.0, 0.5, sa, parts_a[a:b])
         speed_hold(t[a:b], v[a:b], ax[a:b], sh, parts_h[a:b])

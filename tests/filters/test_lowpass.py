@@ -11,9 +11,9 @@ import numpy as np
 import pytest
 
 from vestim.filters.lowpass import (
-    N_LOWPASS,
     LowpassParams,
     bandwidth,
+    new_lowpass_state,
     noise_adaptive_lowpass,
     noise_variance,
 )
@@ -25,7 +25,7 @@ DT = 0.005
 def _run(x: np.ndarray, prm: LowpassParams = PRM) -> tuple[np.ndarray, np.ndarray]:
     t = np.arange(x.size) * DT
     out, var = np.empty_like(x), np.empty_like(x)
-    noise_adaptive_lowpass(prm, np.zeros(N_LOWPASS), t, x, out, var)
+    noise_adaptive_lowpass(prm, new_lowpass_state(), t, x, out, var)
     return out, var
 
 
@@ -52,7 +52,7 @@ def test_white_noise_is_measured_and_the_remaining_variance_is_honest() -> None:
     x = 2.0 + 0.4 * rng.standard_normal(40_000)
     t = np.arange(x.size) * DT
     var = np.empty_like(x)
-    noise_variance(PRM, np.zeros(N_LOWPASS), t, x, var)
+    noise_variance(PRM, new_lowpass_state(), t, x, var)
     assert math.sqrt(float(np.median(var[2000:]))) == pytest.approx(0.4, rel=0.08)
     out, var_in = _run(x)
     assert float(np.median(var_in[2000:])) == pytest.approx(float(np.median(var[2000:])))
@@ -102,6 +102,6 @@ def test_exact_discretisation_is_stable_where_euler_is_not(rate: float) -> None:
     rng = np.random.default_rng(2)
     x = np.where(t > 5.0, 3.0, 0.3 * rng.standard_normal(t.size))
     out, var = np.empty_like(x), np.empty_like(x)
-    noise_adaptive_lowpass(prm, np.zeros(N_LOWPASS), t, x, out, var)
+    noise_adaptive_lowpass(prm, new_lowpass_state(), t, x, out, var)
     assert np.all(np.isfinite(out)) and float(np.max(np.abs(out))) < 3.5
     assert abs(float(out[-1]) - 3.0) < 1e-9

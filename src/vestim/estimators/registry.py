@@ -103,6 +103,17 @@ def register(stage: str, name: str, summary: str, *, cite: str = "",
     return decorate
 
 
+def registered(stage: str) -> dict[str, Method]:
+    """The methods of ``stage`` registered so far, by name in registration order (their
+    codes' order), without importing the method families: what a module that registers its
+    methods reads their codes from, right after its ``register`` calls.
+
+    Raises:
+        UnknownMethodError: ``stage`` is not one of :data:`STAGES`.
+    """
+    return dict(_REGISTRY[lookup_stage(stage)])
+
+
 def _loaded() -> dict[str, dict[str, Method]]:
     for module in _FAMILIES:
         importlib.import_module(module)

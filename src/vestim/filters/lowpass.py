@@ -35,11 +35,6 @@ from numba import njit
 
 _JIT: dict[str, Any] = {"cache": True, "error_model": "numpy"}
 
-N_LOWPASS = 8
-"""Length of one signal's state in :func:`noise_adaptive_lowpass`: [y, ẏ, h, v, σ², t_prev,
-started, x_prev] (the output section, the noise tracker, the noise's mean square, the
-previous sample held over the tracker's next interval)."""
-
 ZETA = 1.0 / np.sqrt(2.0)
 """Damping of both second-order sections (Butterworth)."""
 DT_REF = 1.0 / 200.0
@@ -55,6 +50,34 @@ class LowpassParams(NamedTuple):
     sigma_ref: float  # the noise per sample (signal's unit) at which f_ref holds at 200 Hz
     f_noise: float  # Hz, edge above which the signal is taken to be noise
     tau_noise: float  # s, averaging time of the noise's mean square
+
+
+class LowpassState(NamedTuple):
+    """State of one signal in :func:`noise_adaptive_lowpass` and :func:`noise_variance` (in
+    place); each field a 1-element array, :func:`new_lowpass_state` makes a fresh one.
+
+    Attributes:
+        y, y_rate: the output section: the output (the signal's unit) and its rate (per s).
+        h, v: the type-2 noise tracker: its value and rate.
+        var: the noise's mean square σ̂² per sample (the signal's unit squared).
+        t_prev: time of the previous sample, s.
+        started: 1.0 once the first finite sample started the filter.
+        x_prev: the previous sample, held over the tracker's next interval.
+    """
+
+    y: np.ndarray
+    y_rate: np.ndarray
+    h: np.ndarray
+    v: np.ndarray
+    var: np.ndarray
+    t_prev: np.ndarray
+    started: np.ndarray
+    x_prev: np.ndarray
+
+
+def new_lowpass_state() -> LowpassState:
+    """A fresh :class:`LowpassState` (the next finite sample starts the filter)."""
+    return LowpassState(*(np.zeros(1) for _ in LowpassState._fields))
 
 
 @njit(**_JIT)
@@ -86,34 +109,35 @@ def bandwidth(prm: LowpassParams, var: float, dt: float) -> float:
 
 
 @njit(**_JIT)
-def _noise(prm: LowpassParams, state: np.ndarray, xk: float, dt: float) -> None:
-    """One sample of the noise's mean square state[4] from the residual of the type-2 tracker
-    state[2:4] at ``f_noise``; starts both on the first sample (state[6] = 0)."""
-    if state[6] == 0.0:
-        state[0] = xk
-        state[1] = 0.0
-        state[2] = xk
-        state[3] = 0.0
-        state[4] = 0.0  # f_max until noise is seen (the mean square grows over tau_noise)
-        state[6] = 1.0
+def _noise(prm: LowpassParams, st: LowpassState, xk: float, dt: float) -> None:
+    """One sample of the noise's mean square ``st.var`` from the residual of the type-2
+    tracker ``st.h``, ``st.v`` at ``f_noise``; starts both on the first sample
+    (``st.started`` 0)."""
+    if st.started[0] == 0.0:
+        st.y[0] = xk
+        st.y_rate[0] = 0.0
+        st.h[0] = xk
+        st.v[0] = 0.0
+        st.var[0] = 0.0  # f_max until noise is seen (the mean square grows over tau_noise)
+        st.started[0] = 1.0
     elif dt > 0.0:
         w = 2.0 * np.pi * prm.f_noise
         # The tracker over the interval with the previous sample held: its prediction, which
         # x_k has not moved. White noise: E e² = σ² (1 + dt ω (1 + 4ζ²)/(4ζ)).
-        e, state[3] = _propagate(state[2] - state[7], state[3], w, dt, True)
-        state[2] = state[7] + e
-        r = xk - state[2]
+        e, st.v[0] = _propagate(st.h[0] - st.x_prev[0], st.v[0], w, dt, True)
+        st.h[0] = st.x_prev[0] + e
+        r = xk - st.h[0]
         lam = np.exp(-dt / prm.tau_noise)
         gain = 1.0 + dt * w * (1.0 + 4.0 * ZETA * ZETA) / (4.0 * ZETA)
-        state[4] = lam * state[4] + (1.0 - lam) * r * r / gain
-    state[7] = xk
+        st.var[0] = lam * st.var[0] + (1.0 - lam) * r * r / gain
+    st.x_prev[0] = xk
 
 
 @njit(**_JIT)
-def noise_adaptive_lowpass(prm: LowpassParams, state: np.ndarray, t: np.ndarray,
+def noise_adaptive_lowpass(prm: LowpassParams, st: LowpassState, t: np.ndarray,
                            x: np.ndarray, out: np.ndarray, var_out: np.ndarray) -> None:
-    """Filter ``x`` (n,) sampled at times ``t`` (s) into ``out`` (n,), in place on ``state``
-    (:data:`N_LOWPASS`); the first finite sample starts the filter at rest on it.
+    """Filter ``x`` (n,) sampled at times ``t`` (s) into ``out`` (n,), in place on ``st``
+    (:class:`LowpassState`); the first finite sample starts the filter at rest on it.
     ``var_out`` (n,): the measured noise variance σ̂² per sample of ``x`` (see
     :func:`noise_variance`). The noise left in ``out`` is about σ̂² dt ω_n/(4ζ) (white noise
     of two-sided density σ̂² dt through the section, whose ∫|H|² df is ω_n/(4ζ))."""
@@ -123,26 +147,26 @@ def noise_adaptive_lowpass(prm: LowpassParams, state: np.ndarray, t: np.ndarray,
             out[k] = np.nan
             var_out[k] = np.nan
             continue
-        dt = t[k] - state[5] if state[6] != 0.0 else 0.0
-        _noise(prm, state, xk, dt)
+        dt = t[k] - st.t_prev[0] if st.started[0] != 0.0 else 0.0
+        _noise(prm, st, xk, dt)
         if dt > 0.0:
-            e, state[1] = _propagate(state[0] - xk, state[1], bandwidth(prm, state[4], dt), dt,
-                                     False)
-            state[0] = xk + e
-        state[5] = t[k]
-        out[k] = state[0]
-        var_out[k] = state[4]
+            e, st.y_rate[0] = _propagate(st.y[0] - xk, st.y_rate[0],
+                                         bandwidth(prm, st.var[0], dt), dt, False)
+            st.y[0] = xk + e
+        st.t_prev[0] = t[k]
+        out[k] = st.y[0]
+        var_out[k] = st.var[0]
 
 
 @njit(**_JIT)
-def noise_variance(prm: LowpassParams, state: np.ndarray, t: np.ndarray, x: np.ndarray,
+def noise_variance(prm: LowpassParams, st: LowpassState, t: np.ndarray, x: np.ndarray,
                    var_out: np.ndarray) -> None:
     """The noise variance per sample σ̂² of ``x`` (n,) into ``var_out`` (n,) (the mean square
-    above ``f_noise``; NaN at NaN samples), in place on ``state`` (:data:`N_LOWPASS`)."""
+    above ``f_noise``; NaN at NaN samples), in place on ``st`` (:class:`LowpassState`)."""
     for k in range(x.shape[0]):
         if np.isnan(x[k]):
             var_out[k] = np.nan
             continue
-        _noise(prm, state, x[k], t[k] - state[5] if state[6] != 0.0 else 0.0)
-        state[5] = t[k]
-        var_out[k] = state[4]
+        _noise(prm, st, x[k], t[k] - st.t_prev[0] if st.started[0] != 0.0 else 0.0)
+        st.t_prev[0] = t[k]
+        var_out[k] = st.var[0]

@@ -35,6 +35,9 @@ from vestim.estimators import registry
 from vestim.estimators.force.estimator import (
     AX_TAU,
     AX_TAU_SPARSE,
+    LoadFilterState,
+    SpeedDerivativeState,
+    SpeedHoldState,
     load_specific_force,
     normalised,
     speed_derivative,
@@ -53,7 +56,9 @@ from vestim.estimators.force.longitudinal import (
     longitudinal_rows,
 )
 from vestim.estimators.force.normal import (
+    DYNAMIC,
     AttitudeKernelParams,
+    AttitudeState,
     NormalLoadKernelParams,
     attitude_kernel,
     normal_load_params,
@@ -92,7 +97,7 @@ from vestim.estimators.velocity.corner_common import (
     CornerParams,
     CornerState,
 )
-from vestim.estimators.velocity.kinematic import kinematic_kernel
+from vestim.estimators.velocity.kinematic import KinematicState, kinematic_kernel
 from vestim.estimators.velocity.reference import (
     RadiusKernelParams,
     RadiusState,
@@ -239,14 +244,14 @@ class ForceParams(NamedTuple):
 class ForceState(NamedTuple):
     """The force stage's states (shared with :class:`~vestim.estimators.force.ForceEstimator`)."""
 
-    attitude: np.ndarray
+    attitude: AttitudeState
     lon: LongitudinalState
     lateral: LateralState
-    ax_state: np.ndarray  # the wheel-speed a_x's filter (logs without ax)
+    ax_state: SpeedDerivativeState  # the wheel-speed a_x's filter (logs without ax)
     inertia: LongitudinalState  # the longitudinal method on zero torque: the chassis
     # torques' ω̇ (logs without torques)
-    hold_state: np.ndarray  # the speed between gnss_speed fixes (logs without wheel speeds)
-    load_filter: np.ndarray  # load_specific_force's (4, N_LOWPASS)
+    hold_state: SpeedHoldState  # the speed between gnss_speed fixes (logs without wheel speeds)
+    load_filter: LoadFilterState  # load_specific_force's
 
 
 class VelocityParams(NamedTuple):
@@ -289,7 +294,7 @@ class VelocityState(NamedTuple):
     fused: ReferenceState
     prev: np.ndarray
     corner: CornerState
-    kinematic: np.ndarray  # the kinematic integrator's state
+    kinematic: KinematicState  # the kinematic integrator's state
     seeded: np.ndarray  # (1,) 1.0 once the corner observers took the reference's velocity
 
 
@@ -951,9 +956,9 @@ def build(pipe: Pipeline, names: tuple[str, ...], sensors: Sensors) -> tuple[Par
     force_p = ForceParams(
         float(b.wheel_radius), float(fe.rolling_resistance * b.wheel_radius),
         float(fe._drag_coef), float(lp.load_exponent), float(lp.slip_scale),
-        normal_load_params(veh), fe.config.normal == "dynamic", fe._att_prm, lon.params,
-        fe._xw, fe._yw, fe.lateral_params, chassis_params(veh), fe.load_filter_params,
-        fe.config.load_filter.enabled)
+        normal_load_params(veh), registry.lookup("normal", fe.config.normal).code == DYNAMIC,
+        fe._att_prm, lon.params, fe._xw, fe._yw, fe.lateral_params, chassis_params(veh),
+        fe.load_filter_params, fe.config.load_filter.enabled)
     inertia = fe._lon_inertia  # the same method and parameters as lon, its own state
     force_s = ForceState(fe._att, lon.state, fe.lateral_state, fe._ax_state, inertia.state,
                          fe._hold_state, fe.load_filter_state)

@@ -134,9 +134,11 @@ def test_observers_are_exact_for_a_constant_force(force, torque):
     omega = np.repeat((30 + (torque - r * force) / iw * t)[:, None], 4, axis=1)
     tq = np.full((n, 4), torque)
     fx = np.empty((n, 4))
-    lon.uio_kernel(t, omega, tq, iw, r, 42.0, 0.0, np.zeros((2, 4)), np.zeros((3, 4)), fx)
+    lon.uio_kernel(t, omega, tq, iw, r, 42.0, 0.0, lon.new_observer_state(),
+                   lon.new_previous_sample(), fx)
     assert fx[-1, 0] == pytest.approx(force, abs=1e-6 * (1 + abs(force)))
-    lon.pid_kernel(t, omega, tq, iw, r, 1.8, 11.4, 50.6, np.zeros((3, 4)), np.zeros((3, 4)), fx)
+    lon.pid_kernel(t, omega, tq, iw, r, 1.8, 11.4, 50.6, lon.new_observer_state(),
+                   lon.new_previous_sample(), fx)
     assert fx[-1, 0] == pytest.approx(force, abs=1e-3 * (1 + abs(force)))
 
 
@@ -213,6 +215,8 @@ def test_ukf_rw_is_the_linear_kalman_filter_of_its_model():
         METHODS,
         LongitudinalParams,
         LongitudinalState,
+        new_observer_state,
+        new_previous_sample,
         ukf_params,
         ukf_rw_kernel,
     )
@@ -231,8 +235,8 @@ def test_ukf_rw_is_the_linear_kalman_filter_of_its_model():
     params = LongitudinalParams(METHODS.index("ukf_rw"), iw, radius,
                                 ukf_params(lon.UKFParams(), iw, radius), r_w, r_t, q_f, q_f,
                                 np.inf, p0, 0.0, 0.0, 0.0, 0.0, 0.0, wm, wc, tau)
-    state = LongitudinalState(x, P, hist_t, hist_w, np.zeros(4), np.zeros((3, 4)),
-                              np.zeros((3, 4)))
+    state = LongitudinalState(x, P, hist_t, hist_w, np.zeros(4), new_observer_state(),
+                              new_previous_sample())
     ukf_rw_kernel(params, state, t, omega, torque, fx, sig, high)
     A = np.array([[1.0, -dt * radius / iw], [0.0, 1.0]])
     Q = np.diag([(dt / iw) ** 2 * r_t, q_f * dt])

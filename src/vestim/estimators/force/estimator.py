@@ -52,7 +52,7 @@ from __future__ import annotations
 import math
 from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass, field
-from typing import Any
+from typing import Any, NamedTuple
 
 import numpy as np
 import pandas as pd
@@ -64,8 +64,9 @@ from vestim.estimators.force import lateral as lat
 from vestim.estimators.force import longitudinal as lon
 from vestim.estimators.force import normal as nrm
 from vestim.filters.lowpass import (
-    N_LOWPASS,
     LowpassParams,
+    LowpassState,
+    new_lowpass_state,
     noise_adaptive_lowpass,
     noise_variance,
 )
@@ -382,10 +383,67 @@ def inputs_from_log(log: pd.DataFrame, vehicle: Vehicle) -> Inputs:
     )
 
 
+class SpeedDerivativeState(NamedTuple):
+    """State of :func:`speed_derivative` (in place); each field a 1-element array.
+
+    Attributes:
+        t_prev: time of the last finite speed sample, s.
+        v_lp: its low-passed speed, m/s.
+        rate: the derivative, m/s² (0 until the second finite sample).
+        started: 1.0 once the first finite sample was seen.
+    """
+
+    t_prev: np.ndarray
+    v_lp: np.ndarray
+    rate: np.ndarray
+    started: np.ndarray
+
+
+def new_speed_derivative_state() -> SpeedDerivativeState:
+    """A fresh :class:`SpeedDerivativeState` (not started)."""
+    return SpeedDerivativeState(np.zeros(1), np.zeros(1), np.zeros(1), np.zeros(1))
+
+
+class SpeedHoldState(NamedTuple):
+    """State of :func:`speed_hold` (in place); each field a 1-element array.
+
+    Attributes:
+        speed: the held speed, m/s.
+        t_prev: time of the previous sample, s.
+        started: 1.0 once a sample was seen.
+    """
+
+    speed: np.ndarray
+    t_prev: np.ndarray
+    started: np.ndarray
+
+
+def new_speed_hold_state() -> SpeedHoldState:
+    """A fresh :class:`SpeedHoldState` (not started)."""
+    return SpeedHoldState(np.zeros(1), np.zeros(1), np.zeros(1))
+
+
+class LoadFilterState(NamedTuple):
+    """State of :func:`load_specific_force`: the low-pass of each road-plane specific-force
+    component and the noise measurement of the yaw gyro."""
+
+    f_x: LowpassState
+    f_y: LowpassState
+    f_z: LowpassState
+    yaw_rate: LowpassState
+
+
+def new_load_filter_state() -> LoadFilterState:
+    """A fresh :class:`LoadFilterState` (the next sample starts every filter)."""
+    return LoadFilterState(new_lowpass_state(), new_lowpass_state(), new_lowpass_state(),
+                           new_lowpass_state())
+
+
 @njit(cache=True, error_model="numpy")
 def wheel_reference_speed(t: np.ndarray, omega: np.ndarray, yaw_rate: np.ndarray,
                           yw: np.ndarray, radius: float, free: int, tau_v: float,
-                          tau_a: float, state: np.ndarray, out: np.ndarray) -> None:
+                          tau_a: float, state: SpeedDerivativeState,
+                          out: np.ndarray) -> None:
     """a_x (n,) m/s² from the wheel speeds (n, 4) rad/s, by :func:`speed_derivative` of a
     reference speed. Each wheel's speed is brought to the CG's, R ω_i + r y_i (yaw rate r
     rad/s, lateral positions ``yw`` m); the reference is, while accelerating (or steady),
@@ -399,7 +457,7 @@ def wheel_reference_speed(t: np.ndarray, omega: np.ndarray, yaw_rate: np.ndarray
     for k in range(t.shape[0]):
         for i in range(4):
             w[i] = radius * omega[k, i] + yaw_rate[k] * yw[i]
-        if state[3] == 1.0 and state[2] < -AX_BRAKING:
+        if state.started[0] == 1.0 and state.rate[0] < -AX_BRAKING:
             ref = w.max()
         elif free >= 0:
             ref = 0.5 * (w[2 * free] + w[2 * free + 1])
@@ -411,7 +469,8 @@ def wheel_reference_speed(t: np.ndarray, omega: np.ndarray, yaw_rate: np.ndarray
 
 
 @njit(cache=True, error_model="numpy")
-def load_specific_force(prm: LowpassParams, enabled: bool, state: np.ndarray, t: np.ndarray,
+def load_specific_force(prm: LowpassParams, enabled: bool, state: LoadFilterState,
+                        t: np.ndarray,
                         f_x: np.ndarray,
                         f_y: np.ndarray, f_z: np.ndarray, r: np.ndarray
                         ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
@@ -419,12 +478,12 @@ def load_specific_force(prm: LowpassParams, enabled: bool, state: np.ndarray, t:
     measurements.
 
     Each component goes through :func:`~vestim.filters.lowpass.noise_adaptive_lowpass`
-    (state rows 0–2 of ``state`` (4, N_LOWPASS)), or passes through where not ``enabled``: the
+    (``state.f_x``, ``f_y``, ``f_z``), or passes through where not ``enabled``: the
     normal loads take these (a body-mounted IMU's 10–30 Hz
     vibration of up to 4 m/s² is no tire load; the campaign's F_z was 13 of 48 times worse
     than the static loads with it). The fourth array (4, n) holds the measured noise
-    variance per sample of f_x, f_y, f_z ((m/s²)²) and of the yaw gyro ((rad/s)², row 3 of
-    ``state``), for the lateral UKF, which takes the unfiltered force (a delay there costs
+    variance per sample of f_x, f_y, f_z ((m/s²)²) and of the yaw gyro ((rad/s)²,
+    ``state.yaw_rate``), for the lateral UKF, which takes the unfiltered force (a delay there costs
     F_y in proportion to the steering frequency: 1.3–2.3 points on the crossplant sine
     steers at 8 Hz) and weighs its noise with these (0 where the filter is off: the
     configured values alone). The chassis torques (a torque step's m a_x: our simulator's
@@ -435,50 +494,52 @@ def load_specific_force(prm: LowpassParams, enabled: bool, state: np.ndarray, t:
     if not enabled:
         return f_x, f_y, f_z, var
     out = np.empty((3, n))
-    for j, f in enumerate((f_x, f_y, f_z)):
-        noise_adaptive_lowpass(prm, state[j], t, f, out[j], var[j])
-    noise_variance(prm, state[3], t, r, var[3])
+    noise_adaptive_lowpass(prm, state.f_x, t, f_x, out[0], var[0])
+    noise_adaptive_lowpass(prm, state.f_y, t, f_y, out[1], var[1])
+    noise_adaptive_lowpass(prm, state.f_z, t, f_z, out[2], var[2])
+    noise_variance(prm, state.yaw_rate, t, r, var[3])
     return out[0], out[1], out[2], var
 
 
 @njit(cache=True, error_model="numpy")
 def speed_derivative(t: np.ndarray, v: np.ndarray, tau_v: float, tau_a: float,
-                     state: np.ndarray, out: np.ndarray) -> None:
+                     state: SpeedDerivativeState, out: np.ndarray) -> None:
     """Causal derivative of a speed v (n,) m/s into ``out`` (n,) m/s²: v low-passed (τ_v),
     backward-differenced between its finite samples, low-passed again (τ_a, both s).
 
-    NaN samples of v (a sparse channel between fixes) hold the output. ``state`` = [t of the
-    last finite v, its low-passed value, the derivative, started] carries over chunks;
-    0 until the second finite sample.
+    NaN samples of v (a sparse channel between fixes) hold the output. ``state``
+    (:class:`SpeedDerivativeState`) carries over chunks; the derivative is 0 until the
+    second finite sample.
     """
     for k in range(t.shape[0]):
         if not np.isnan(v[k]):
-            if state[3] == 0.0:
-                state[0], state[1], state[2], state[3] = t[k], v[k], 0.0, 1.0
+            if state.started[0] == 0.0:
+                state.t_prev[0], state.v_lp[0], state.rate[0] = t[k], v[k], 0.0
+                state.started[0] = 1.0
             else:
-                dt = t[k] - state[0]
+                dt = t[k] - state.t_prev[0]
                 if dt > 0.0:
                     g = min(dt / tau_v, 1.0) if tau_v > 0.0 else 1.0
-                    v_lp = state[1] + g * (v[k] - state[1])
+                    v_lp = state.v_lp[0] + g * (v[k] - state.v_lp[0])
                     g = min(dt / tau_a, 1.0) if tau_a > 0.0 else 1.0
-                    state[2] += g * ((v_lp - state[1]) / dt - state[2])
-                    state[0], state[1] = t[k], v_lp
-        out[k] = state[2]
+                    state.rate[0] += g * ((v_lp - state.v_lp[0]) / dt - state.rate[0])
+                    state.t_prev[0], state.v_lp[0] = t[k], v_lp
+        out[k] = state.rate[0]
 
 
 @njit(cache=True, error_model="numpy")
-def speed_hold(t: np.ndarray, fix: np.ndarray, ax: np.ndarray, state: np.ndarray,
+def speed_hold(t: np.ndarray, fix: np.ndarray, ax: np.ndarray, state: SpeedHoldState,
                out: np.ndarray) -> None:
     """A dense speed (n,) m/s from sparse fixes (NaN between): the last fix advanced by the
-    integral of the specific force ``ax`` (m/s²), ≥ 0; 0 before the first fix. ``state`` =
-    [speed, t_prev, started] carries over chunks."""
+    integral of the specific force ``ax`` (m/s²), ≥ 0; 0 before the first fix. ``state``
+    (:class:`SpeedHoldState`) carries over chunks."""
     for k in range(t.shape[0]):
-        if state[2] == 1.0:
-            state[0] = max(state[0] + (t[k] - state[1]) * ax[k], 0.0)
-        state[1], state[2] = t[k], 1.0
+        if state.started[0] == 1.0:
+            state.speed[0] = max(state.speed[0] + (t[k] - state.t_prev[0]) * ax[k], 0.0)
+        state.t_prev[0], state.started[0] = t[k], 1.0
         if not np.isnan(fix[k]):
-            state[0] = fix[k]
-        out[k] = state[0]
+            state.speed[0] = fix[k]
+        out[k] = state.speed[0]
 
 
 ColumnGroup = tuple[list[str], np.ndarray]
@@ -612,11 +673,11 @@ class ForceEstimator:
         self._yw = 0.5 * np.array([b.track_f, -b.track_f, b.track_r, -b.track_r])
         wm, wc, tau = ukf_weights(4)
         lp = self.config.lateral
-        self.lateral_params = lat.LateralKernelParams(
-            float(b.mass), float(b.yaw_inertia), self._xw, self._yw,
-            lat.lateral_q(lp, vehicle.tire.sigma0_y / vehicle.tire.kappa_y),
+        self.lateral_params = lat.lateral_params(
+            lp, b.mass, b.yaw_inertia, self._xw, self._yw,
+            vehicle.tire.sigma0_y / vehicle.tire.kappa_y,
             np.array([(b.mass * lp.sigma_ax) ** 2, (b.mass * lp.sigma_ay) ** 2,
-                      lp.sigma_yaw**2, lp.sigma_split**2]), wm, wc, float(tau))
+                      lp.sigma_yaw**2, lp.sigma_split**2]), wm, wc, tau)
         """The lateral-force UKF's parameters (:func:`~.lateral.lateral_kernel`)."""
         a = vehicle.stated_aerodynamics
         self._drag_coef = 0.5 * a.air_density * a.drag_area
@@ -632,11 +693,11 @@ class ForceEstimator:
         # inertial force −I_w ω̇_i/R alone (every method is linear in the torque).
         self._lon_inertia = lon.LongitudinalEstimator(self.vehicle, cfg.longitudinal, cfg.ukf,
                                                       cfg.pid, cfg.uio)
-        self._att = np.zeros(nrm.N_ATTITUDE)
+        self._att = nrm.new_attitude_state()
         self.lateral_state = lat.new_lateral_state()
-        self._ax_state = np.zeros(4)  # speed_derivative's state (logs without ax)
-        self.load_filter_state = np.zeros((4, N_LOWPASS))  # load_specific_force's
-        self._hold_state = np.zeros(3)  # speed_hold's state (gnss_speed without wheel speeds)
+        self._ax_state = new_speed_derivative_state()  # speed_derivative's (logs without ax)
+        self.load_filter_state = new_load_filter_state()  # load_specific_force's
+        self._hold_state = new_speed_hold_state()  # speed_hold's (gnss_speed, no wheel speeds)
         self._seen: dict[str, set[str]] = {}
 
     @property

@@ -74,8 +74,6 @@ _JIT: dict[str, Any] = {"cache": True, "error_model": "numpy"}
 FYF, FYR, DFYF, YAW = 0, 1, 2, 3
 N_X = 4
 N_Y = 4
-N_STATE = 15
-"""Length of the kernel's carried state (see :func:`lateral_kernel`)."""
 
 
 @dataclass(frozen=True)
@@ -125,15 +123,24 @@ class LateralParams:
             nonnegative=("load_exponent", "bias_tau"))
 
 
-def lateral_q(lp: LateralParams, c0: float = 0.0) -> np.ndarray:
-    """The ``q`` argument of :func:`lateral_kernel`: [q_force, q_force, q_split, q_yaw,
-    adapt_tau, adapt_nu, adapt_cap, bias_tau, c₀ of the kinematic split (0: none), bias_scale].
+def lateral_q(lp: LateralParams) -> np.ndarray:
+    """The ``q`` field of :class:`LateralKernelParams`: the random walks' intensities on the
+    UKF's state [q_force, q_force, q_split, q_yaw]."""
+    return np.array([lp.q_force, lp.q_force, lp.q_split, lp.q_yaw])
+
+
+def lateral_params(lp: LateralParams, mass: float, iz: float, xw: np.ndarray, yw: np.ndarray,
+                   c0: float, r_diag: np.ndarray, wm: np.ndarray, wc: np.ndarray,
+                   tau: float) -> LateralKernelParams:
+    """:class:`LateralKernelParams` from the config ``lp``, the car's mass (kg), yaw inertia
+    (kg m²) and corner positions (m), and the measurement noise and sigma-point weights.
 
     ``c0``: the nominal normalised cornering stiffness C_y/F_z, 1/rad (σ0y/κy of the
-    vehicle file's [tire] table)."""
-    return np.array([lp.q_force, lp.q_force, lp.q_split, lp.q_yaw, lp.adapt_tau, lp.adapt_nu,
-                     lp.adapt_cap, lp.bias_tau, c0 if lp.split_kinematic else 0.0,
-                     lp.bias_scale])
+    vehicle file's [tire] table), used where ``lp.split_kinematic``."""
+    return LateralKernelParams(float(mass), float(iz), xw, yw, lateral_q(lp), r_diag, wm, wc,
+                               float(tau), float(lp.adapt_tau), float(lp.adapt_nu),
+                               float(lp.adapt_cap), float(lp.bias_tau),
+                               float(c0) if lp.split_kinematic else 0.0, float(lp.bias_scale))
 
 
 @njit(**_JIT)
@@ -194,9 +201,11 @@ def _body_forces(x: np.ndarray, fx: np.ndarray, cd: np.ndarray, sd: np.ndarray, 
 
 
 class LateralKernelParams(NamedTuple):
-    """:func:`lateral_kernel`'s parameters (SI): the car's mass (kg) and yaw inertia
-    (kg m²), the corner positions ``xw`` ahead of and ``yw`` left of the CG (4,) m, the noise
-    ``q`` (:func:`lateral_q`) and ``r_diag`` (4,), the sigma-point weights and scale."""
+    """:func:`lateral_kernel`'s parameters (SI), made by :func:`lateral_params`: the car's
+    mass (kg) and yaw inertia (kg m²), the corner positions ``xw`` ahead of and ``yw`` left
+    of the CG (4,) m, the random walks ``q`` (:func:`lateral_q`) and the measurement noise
+    ``r_diag`` (4,), the sigma-point weights and scale, and the :class:`LateralParams` of the
+    innovation-matched random walk, the f_y offset and the kinematic split."""
 
     mass: float
     iz: float
@@ -207,20 +216,49 @@ class LateralKernelParams(NamedTuple):
     wm: np.ndarray
     wc: np.ndarray
     tau: float
+    adapt_tau: float  # s, the innovation means' averaging time (0: no adaptation)
+    adapt_nu: float  # ν_0, the normalised innovation mean that doubles the force walk
+    adapt_cap: float  # the most factor on the force walk
+    bias_tau: float  # s, the f_y offset's longest memory (0: no offset)
+    split_c0: float  # c₀ of the kinematic front split, 1/rad (0: none)
+    bias_scale: float  # m/s², the offset's Cauchy scale
 
 
 class LateralState(NamedTuple):
-    """:func:`lateral_kernel`'s state: ``x`` (:data:`N_X`,), ``P`` (N_X, N_X), ``state``
-    (:data:`N_STATE`,) (see there); :func:`new_lateral_state` makes a fresh one."""
+    """:func:`lateral_kernel`'s state (in place); :func:`new_lateral_state` makes a fresh one.
+
+    Attributes:
+        x: (:data:`N_X`,) the UKF's state [F_yf, F_yr, ΔF_yf, r] (N, N, N, rad/s).
+        P: (N_X, N_X) its covariance.
+        t_prev: (1,) time of the previous sample, s.
+        started: (1,) 1.0 once the first sample started the filter.
+        fx_prev: (4,) F_x of the previous sample, N, and ``delta_prev`` (4,) its road-wheel
+            angles, rad: held over the interval.
+        nu_balance, nu_yaw: (1,) the running means ν̄ of the normalised lateral-balance and
+            yaw-rate innovations.
+        walk_factor: (1,) the factor on the force random walk (1 + (ν̄/ν_0)², capped).
+        fy_offset: (1,) the offset b̂ of f_y, m/s².
+        elapsed: (1,) time since the start, s.
+    """
 
     x: np.ndarray
     P: np.ndarray
-    state: np.ndarray
+    t_prev: np.ndarray
+    started: np.ndarray
+    fx_prev: np.ndarray
+    delta_prev: np.ndarray
+    nu_balance: np.ndarray
+    nu_yaw: np.ndarray
+    walk_factor: np.ndarray
+    fy_offset: np.ndarray
+    elapsed: np.ndarray
 
 
 def new_lateral_state() -> LateralState:
     """A fresh :class:`LateralState` (the next sample initialises the filter)."""
-    return LateralState(np.zeros(N_X), np.zeros((N_X, N_X)), np.zeros(N_STATE))
+    return LateralState(np.zeros(N_X), np.zeros((N_X, N_X)), np.zeros(1), np.zeros(1),
+                        np.zeros(4), np.zeros(4), np.zeros(1), np.zeros(1), np.zeros(1),
+                        np.zeros(1), np.zeros(1))
 
 
 @njit(**_JIT)
@@ -228,7 +266,7 @@ def lateral_kernel(p: LateralKernelParams, s: LateralState, t: np.ndarray, fx: n
                    delta: np.ndarray, weights: np.ndarray, f_x: np.ndarray, f_y: np.ndarray,
                    yaw_rate: np.ndarray, noise: np.ndarray, drag: np.ndarray, fz: np.ndarray,
                    speed: np.ndarray, fy_out: np.ndarray, sig_out: np.ndarray) -> None:
-    """Advance the lateral-force UKF over a chunk (in place on ``s``: x (4,), P (4, 4), state).
+    """Advance the lateral-force UKF over a chunk (in place on ``s``, :class:`LateralState`).
 
     Inputs per sample: fx (n, 4) tire-frame longitudinal forces, delta (n, 4)
     road-wheel angles (rear 0), weights (n, 4) lateral-capacity weights of
@@ -237,15 +275,12 @@ def lateral_kernel(p: LateralKernelParams, s: LateralState, t: np.ndarray, fx: n
     f_x, f_y, f_z ((m/s²)²) and the yaw rate ((rad/s)²; f_z's unused), which raise the measurement noise above
     ``r_diag`` where they exceed it (the log's own sensors, e.g. a vibrating IMU or a gyro
     noisier than the configured one), drag (N), fz (n, 4) normal loads (N), speed
-    (n,) a wheel-speed reference of v_x (m/s). ``q`` from :func:`lateral_q`.
-    ``state`` (:data:`N_STATE`,) = [t_prev, started, F_x (4) and δ (4) of the previous
-    sample, held over the interval, ν̄ of the lateral balance, ν̄ of the yaw rate, factor
-    on the force random walk, offset b̂ of f_y (m/s²), time since the start (s)].
+    (n,) a wheel-speed reference of v_x (m/s).
     Outputs: fy_out (n, 4) tire-frame lateral force per corner, sig_out (n, 4) one-sigma.
     """
     mass, iz, xw, yw, q, r_diag = p.mass, p.iz, p.xw, p.yw, p.q, p.r_diag
     wm, wc, tau = p.wm, p.wc, p.tau
-    x, P, state = s.x, s.P, s.state
+    x, P = s.x, s.P
     n = t.shape[0]
     npts = 2 * N_X + 1
     pts = np.empty((npts, N_X))
@@ -260,15 +295,15 @@ def lateral_kernel(p: LateralKernelParams, s: LateralState, t: np.ndarray, fx: n
     H = np.empty((N_Y, N_X))
     cd_now = np.empty(4)
     sd_now = np.empty(4)
-    cd_prev = np.cos(state[6:10])
-    sd_prev = np.sin(state[6:10])
+    cd_prev = np.cos(s.delta_prev)
+    sd_prev = np.sin(s.delta_prev)
     y = np.empty(N_Y)
     for k in range(n):
         wr_sum = weights[k, 2] + weights[k, 3]
         rear_w = weights[k, 2] / wr_sum if wr_sum > 0 else 0.5
         wf_sum = weights[k, 0] + weights[k, 1]
         rho = (weights[k, 1] - weights[k, 0]) / wf_sum if wf_sum > 0 else 0.0
-        if state[1] == 0.0:
+        if s.started[0] == 0.0:
             x[:] = 0.0
             x[YAW] = yaw_rate[k]
             P[:, :] = 0.0
@@ -276,24 +311,24 @@ def lateral_kernel(p: LateralKernelParams, s: LateralState, t: np.ndarray, fx: n
             P[FYR, FYR] = 1.0e6
             P[DFYF, DFYF] = 1.0e5
             P[YAW, YAW] = r_diag[2]
-            state[1] = 1.0
-            state[10] = 0.0
-            state[11] = 0.0
-            state[12] = 1.0
-            state[13] = 0.0
-            state[14] = 0.0
+            s.started[0] = 1.0
+            s.nu_balance[0] = 0.0
+            s.nu_yaw[0] = 0.0
+            s.walk_factor[0] = 1.0
+            s.fy_offset[0] = 0.0
+            s.elapsed[0] = 0.0
         else:
-            dt = t[k] - state[0]
-            state[14] += dt
+            dt = t[k] - s.t_prev[0]
+            s.elapsed[0] += dt
             # Prediction: forces random walk, yaw rate by the yaw moment (001 eq. (9)).
             sigma_points(x, P, tau, L, pts)
             for i in range(npts):
-                _, _, mz = _body_forces(pts[i], state[2:6], cd_prev, sd_prev, rear_w, xw, yw)
+                _, _, mz = _body_forces(pts[i], s.fx_prev, cd_prev, sd_prev, rear_w, xw, yw)
                 pts[i, YAW] += dt * mz / iz
             weighted_mean(pts, wm, xm)
             weighted_cross(pts, xm, pts, xm, wc, Pm)
             for j in range(N_X):
-                Pm[j, j] += q[j] * dt * (state[12] if j < 2 else 1.0)
+                Pm[j, j] += q[j] * dt * (s.walk_factor[0] if j < 2 else 1.0)
             # Update with [m f_x + drag, m f_y, r, 0]. The measurement is affine in
             # the state, y = H x + h0, so the sigma-point sums of the update equal
             # H P̄ Hᵀ and P̄ Hᵀ exactly; they are evaluated in that closed form.
@@ -339,10 +374,10 @@ def lateral_kernel(p: LateralKernelParams, s: LateralState, t: np.ndarray, fx: n
             Pyy[2, 2] += max(r_diag[2], noise[3, k])
             Pyy[3, 3] += r_diag[3]
             y[0] = mass * f_x[k] + drag[k] - ym[0]
-            y[1] = mass * (f_y[k] - state[13]) - ym[1]
+            y[1] = mass * (f_y[k] - s.fy_offset[0]) - ym[1]
             y[2] = yaw_rate[k] - ym[2]
             y[3] = -ym[3]
-            if q[8] > 0.0:
+            if p.split_c0 > 0.0:
                 # Kinematic front split: the outer front wheel runs faster, so with one
                 # steering angle the slip angles differ by r t_f sin δ/v_x; Ackermann
                 # geometry (δ_fl ≠ δ_fr) takes that back. Linear tires C_i = c₀ F_z,i
@@ -350,13 +385,13 @@ def lateral_kernel(p: LateralKernelParams, s: LateralState, t: np.ndarray, fx: n
                 # Δα = δ_fr − δ_fl + r t_f sin δ̄/v_x. Bounded by |F_yf| (neither wheel
                 # reverses its force).
                 v = max(speed[k], 3.0)
-                c_f = q[8] * (max(fz[k, 0], 0.0) + max(fz[k, 1], 0.0))
+                c_f = p.split_c0 * (max(fz[k, 0], 0.0) + max(fz[k, 1], 0.0))
                 d_kin = 0.5 * (1.0 - rho * rho) * c_f * (
                     delta[k, 1] - delta[k, 0] + xm[YAW] * (yw[0] - yw[1])
                     * np.sin(0.5 * (delta[k, 0] + delta[k, 1])) / v)
                 # Off the linear range the secant stiffness falls: the term fades with the
                 # axle's lateral utilisation μ_f = |F_yf|/F_z,f (half at μ_f = 0.2).
-                mu_f = abs(xm[FYF]) / max(c_f / q[8], 1.0)
+                mu_f = abs(xm[FYF]) / max(c_f / p.split_c0, 1.0)
                 d_kin /= 1.0 + (mu_f / 0.2) ** 2
                 lim = abs(xm[FYF])
                 y[3] += min(max(d_kin, -lim), lim)
@@ -364,29 +399,29 @@ def lateral_kernel(p: LateralKernelParams, s: LateralState, t: np.ndarray, fx: n
             # normalised lateral-balance and yaw-rate innovations are ~0 while the
             # random walk keeps up; a force change the walk lags behind makes them
             # drift, and the intensity grows as 1 + (ν̄/ν_0)² (capped) for the next step.
-            if q[4] > 0.0:
-                a_nu = min(dt / q[4], 1.0)
-                state[10] += a_nu * (y[1] / np.sqrt(Pyy[1, 1]) - state[10])
-                state[11] += a_nu * (y[2] / np.sqrt(Pyy[2, 2]) - state[11])
-                nu2 = max(state[10] * state[10], state[11] * state[11])
-                state[12] = min(1.0 + nu2 / (q[5] * q[5]), q[6])
+            if p.adapt_tau > 0.0:
+                a_nu = min(dt / p.adapt_tau, 1.0)
+                s.nu_balance[0] += a_nu * (y[1] / np.sqrt(Pyy[1, 1]) - s.nu_balance[0])
+                s.nu_yaw[0] += a_nu * (y[2] / np.sqrt(Pyy[2, 2]) - s.nu_yaw[0])
+                nu2 = max(s.nu_balance[0] * s.nu_balance[0], s.nu_yaw[0] * s.nu_yaw[0])
+                s.walk_factor[0] = min(1.0 + nu2 / (p.adapt_nu * p.adapt_nu), p.adapt_cap)
             x[:] = xm
             P[:, :] = Pm
             ukf_update(x, P, Pxy, Pyy, y, Ly, K)  # K = Pxy Pyy⁻¹, x̂ += K ν, P −= K Pxyᵀ
-        if q[7] > 0.0:
+        if p.bias_tau > 0.0:
             # Offset of the lateral balance: f_y − r v_x is the sideslip acceleration v̇_y,
             # zero on average, plus what the attitude filter leaks into f_y at low
             # frequency (roll-gyro bias times its crossover time, accelerometer bias);
             # its running mean (memory min(max(elapsed, 1 s), bias_tau)) is removed.
             # A slide (sustained v̇_y) or a spinning wheel in the speed reference makes
             # f_y − r v large: a Cauchy weight (scale ``bias_scale``) leaves such samples out.
-            mem = min(max(state[14], 1.0), q[7])
-            g_b = min((t[k] - state[0]) / mem if state[14] > 0.0 else 0.0, 1.0)
-            e_b = f_y[k] - yaw_rate[k] * speed[k] - state[13]
-            state[13] += g_b * e_b / (1.0 + (e_b / q[9]) ** 2)
-        state[0] = t[k]
-        state[2:6] = fx[k]  # held over the next interval
-        state[6:10] = delta[k]
+            mem = min(max(s.elapsed[0], 1.0), p.bias_tau)
+            g_b = min((t[k] - s.t_prev[0]) / mem if s.elapsed[0] > 0.0 else 0.0, 1.0)
+            e_b = f_y[k] - yaw_rate[k] * speed[k] - s.fy_offset[0]
+            s.fy_offset[0] += g_b * e_b / (1.0 + (e_b / p.bias_scale) ** 2)
+        s.t_prev[0] = t[k]
+        s.fx_prev[:] = fx[k]  # held over the next interval
+        s.delta_prev[:] = delta[k]
         for i in range(4):
             cd_prev[i] = np.cos(delta[k, i])
             sd_prev[i] = np.sin(delta[k, i])

@@ -31,15 +31,31 @@ from typing import Any, NamedTuple
 import numpy as np
 from numba import njit
 
+from vestim.estimators.registry import register, registered
 from vestim.filters.ukf import sigma_points, ukf_weights
 from vestim.io.vehicle import Vehicle
 from vestim.params import check_ranges, pack
 
 _JIT: dict[str, Any] = {"cache": True, "error_model": "numpy"}
 
-METHODS: tuple[str, ...] = ("ukf", "ukf_rw", "pid", "uio", "naive")
-UKF, UKF_RW, PID, UIO, NAIVE = range(len(METHODS))
-"""The methods' codes (their index in :data:`METHODS`, the order the registry lists them)."""
+register("force", "ukf", "UKF on the wheel dynamics with the torque filtered as a state and "
+         "covariance switching on high wheel acceleration", default=True,
+         cite="000 eq. (10)–(12), 004 eq. (1)–(5), Sec. II-A", tables=("force_params",),
+         outputs=("sigma_fx",))
+register("force", "ukf_rw", "the papers' UKF exactly: x = [ω, F_x], F_x a random walk",
+         cite="000 eq. (10)–(12), 004 eq. (1)–(5)", tables=("force_params",),
+         outputs=("sigma_fx",))
+register("force", "pid", "PID observer of the wheel dynamics", cite="001 eq. (2)–(5)",
+         tables=("force_params",))
+register("force", "uio", "unknown-input observer of the wheel dynamics", cite="000 eq. (2)–(3)",
+         tables=("force_params",))
+register("force", "naive", "finite-difference floor F_x = (T − I_w Δω/Δt)/R_e")
+_REGISTERED = registered("force")
+METHODS: tuple[str, ...] = tuple(_REGISTERED)
+"""The methods' names, in the registry's order."""
+UKF, UKF_RW, PID, UIO, NAIVE = (_REGISTERED[name].code
+                                for name in ("ukf", "ukf_rw", "pid", "uio", "naive"))
+"""The methods' registry codes (what :func:`longitudinal_rows` dispatches on)."""
 
 
 # ----------------------------------------------------------------------------- UKF
@@ -544,9 +560,49 @@ class PIDParams:
         check_ranges(self, "force_params.pid", positive=("eta1", "eta2", "eta3"))
 
 
+class ObserverState(NamedTuple):
+    """The PID and UIO observers' state per corner (in place), each field (4,);
+    :func:`new_observer_state` makes a fresh one.
+
+    Attributes:
+        omega_hat: the observer's wheel speed ω̂, rad/s.
+        force: the PID observer's integral part F_c, N (the UIO has none).
+        started: 1.0 once the corner's first sample started the observer.
+    """
+
+    omega_hat: np.ndarray
+    force: np.ndarray
+    started: np.ndarray
+
+
+def new_observer_state() -> ObserverState:
+    """A fresh :class:`ObserverState` (the next sample starts every corner)."""
+    return ObserverState(np.zeros(4), np.zeros(4), np.zeros(4))
+
+
+class PreviousSample(NamedTuple):
+    """The previous sample per corner, each field (4,), held by the PID, UIO and naive
+    kernels; :func:`new_previous_sample` makes a fresh one.
+
+    Attributes:
+        t: its time, s (NaN before the first sample: the naive kernel's "none").
+        omega: its wheel speed, rad/s.
+        torque: its net wheel torque, N m.
+    """
+
+    t: np.ndarray
+    omega: np.ndarray
+    torque: np.ndarray
+
+
+def new_previous_sample() -> PreviousSample:
+    """A fresh :class:`PreviousSample` (``t`` NaN: no previous sample)."""
+    return PreviousSample(np.full(4, np.nan), np.zeros(4), np.zeros(4))
+
+
 @njit(**_JIT)
 def pid_kernel(t: np.ndarray, omega: np.ndarray, torque: np.ndarray, iw: float, radius: float,
-               eta1: float, eta2: float, eta3: float, state: np.ndarray, prev: np.ndarray,
+               eta1: float, eta2: float, eta3: float, obs: ObserverState, prev: PreviousSample,
                fx: np.ndarray) -> None:
     """PID observer of 001 eq. (2)–(5), advanced in place over a chunk of samples.
 
@@ -558,28 +614,30 @@ def pid_kernel(t: np.ndarray, omega: np.ndarray, torque: np.ndarray, iw: float, 
     F_m being "the updated measurement at the current time step" of 001 Sec. III-A.
     Then e_F = F − F̂ obeys ė_F = −η3 e_F + Ω̇_f once e_ω has settled (eq. (8)).
 
-    ``state`` (3, 4): rows ω̂, F_c, started-flag; ``prev`` (3, 4): rows t, ω, T of
-    the previous sample.
+    ``obs``: ω̂, F_c and the started flags (:class:`ObserverState`); ``prev`` the previous
+    sample (:class:`PreviousSample`).
     """
     n = t.shape[0]
+    w_hat, f_c, started = obs.omega_hat, obs.force, obs.started
+    t_prev, w_prev, tq_prev = prev.t, prev.omega, prev.torque
     for k in range(n):
         for c in range(4):
-            if state[2, c] == 0.0:
-                state[0, c] = omega[k, c]
-                state[1, c] = 0.0
-                state[2, c] = 1.0
+            if started[c] == 0.0:
+                w_hat[c] = omega[k, c]
+                f_c[c] = 0.0
+                started[c] = 1.0
                 fx[k, c] = 0.0
             else:
-                dt = t[k] - prev[0, c]
-                f_meas = (prev[2, c] - iw * (omega[k, c] - prev[1, c]) / dt) / radius
-                e_prev = prev[1, c] - state[0, c]
-                f_hat = state[1, c] - eta1 * e_prev
-                state[0, c] += dt / iw * (prev[2, c] - radius * f_hat + eta2 * e_prev)
-                state[1, c] += dt * eta3 * (f_meas - f_hat)
-                fx[k, c] = state[1, c] - eta1 * (omega[k, c] - state[0, c])
-            prev[0, c] = t[k]
-            prev[1, c] = omega[k, c]
-            prev[2, c] = torque[k, c]
+                dt = t[k] - t_prev[c]
+                f_meas = (tq_prev[c] - iw * (omega[k, c] - w_prev[c]) / dt) / radius
+                e_prev = w_prev[c] - w_hat[c]
+                f_hat = f_c[c] - eta1 * e_prev
+                w_hat[c] += dt / iw * (tq_prev[c] - radius * f_hat + eta2 * e_prev)
+                f_c[c] += dt * eta3 * (f_meas - f_hat)
+                fx[k, c] = f_c[c] - eta1 * (omega[k, c] - w_hat[c])
+            t_prev[c] = t[k]
+            w_prev[c] = omega[k, c]
+            tq_prev[c] = torque[k, c]
 
 
 # ------------------------------------------------------------ unknown-input observer
@@ -600,7 +658,8 @@ class UIOParams:
 
 @njit(**_JIT)
 def uio_kernel(t: np.ndarray, omega: np.ndarray, torque: np.ndarray, iw: float, radius: float,
-               kp: float, f0: float, state: np.ndarray, prev: np.ndarray, fx: np.ndarray) -> None:
+               kp: float, f0: float, obs: ObserverState, prev: PreviousSample,
+               fx: np.ndarray) -> None:
     """Unknown-input observer of 000 eq. (2)–(3), advanced in place over a chunk.
 
     Virtual wheel speed I_w dω̂/dt = T − R_e f0 + K_p ω̃ with ω̃ = ω − ω̂, and
@@ -610,52 +669,56 @@ def uio_kernel(t: np.ndarray, omega: np.ndarray, torque: np.ndarray, iw: float, 
     (for ω̂̇ = −a(ω̂ − g(t)), g = g0 + s t: ω̂(Δt) = g(Δt) − s/a + (ω̂0 − g0 + s/a) e^{−aΔt}),
     so a constant force is recovered exactly.
 
-    ``state`` (2, 4): rows ω̂, started-flag; ``prev`` (3, 4): rows t, T, ω of the previous sample.
+    ``obs``: ω̂ and the started flags (:class:`ObserverState`; ``force`` unused); ``prev`` the
+    previous sample (:class:`PreviousSample`).
     """
     n = t.shape[0]
     a = kp / iw
+    w_hat, started = obs.omega_hat, obs.started
+    t_prev, w_prev, tq_prev = prev.t, prev.omega, prev.torque
     for k in range(n):
         for c in range(4):
-            if state[1, c] == 0.0:
-                state[0, c] = omega[k, c]
-                state[1, c] = 1.0
+            if started[c] == 0.0:
+                w_hat[c] = omega[k, c]
+                started[c] = 1.0
             else:
-                dt = t[k] - prev[0, c]
-                offset = (prev[1, c] - radius * f0) / kp
-                g0 = prev[2, c] + offset
-                slope = (omega[k, c] - prev[2, c]) / dt
+                dt = t[k] - t_prev[c]
+                offset = (tq_prev[c] - radius * f0) / kp
+                g0 = w_prev[c] + offset
+                slope = (omega[k, c] - w_prev[c]) / dt
                 g1 = omega[k, c] + offset
                 decay = np.exp(-a * dt)
-                state[0, c] = g1 - slope / a + (state[0, c] - g0 + slope / a) * decay
-            fx[k, c] = f0 - kp * (omega[k, c] - state[0, c]) / radius
-            prev[0, c] = t[k]
-            prev[1, c] = torque[k, c]
-            prev[2, c] = omega[k, c]
+                w_hat[c] = g1 - slope / a + (w_hat[c] - g0 + slope / a) * decay
+            fx[k, c] = f0 - kp * (omega[k, c] - w_hat[c]) / radius
+            t_prev[c] = t[k]
+            tq_prev[c] = torque[k, c]
+            w_prev[c] = omega[k, c]
 
 
 # ----------------------------------------------------------------------- naive floor
 @njit(**_JIT)
 def naive_kernel(t: np.ndarray, omega: np.ndarray, torque: np.ndarray, iw: float, radius: float,
-                 prev: np.ndarray, fx: np.ndarray) -> None:
+                 prev: PreviousSample, fx: np.ndarray) -> None:
     """The floor to beat: F_x = (T − I_w Δω/Δt)/R_e with a backward difference, in place.
 
-    ``prev`` (3, 4): rows t, T, ω of the previous sample (t NaN before the first
+    ``prev``: the previous sample (:class:`PreviousSample`; ``t`` NaN before the first
     sample, which gets the torque alone).
     """
+    t_prev, w_prev, tq_prev = prev.t, prev.omega, prev.torque
     for k in range(t.shape[0]):
         for c in range(4):
-            if np.isnan(prev[0, c]):
+            if np.isnan(t_prev[c]):
                 fx[k, c] = torque[k, c] / radius
             else:
-                dt = t[k] - prev[0, c]
-                fx[k, c] = (prev[1, c] - iw * (omega[k, c] - prev[2, c]) / dt) / radius
-            prev[0, c] = t[k]
-            prev[1, c] = torque[k, c]
-            prev[2, c] = omega[k, c]
+                dt = t[k] - t_prev[c]
+                fx[k, c] = (tq_prev[c] - iw * (omega[k, c] - w_prev[c]) / dt) / radius
+            t_prev[c] = t[k]
+            tq_prev[c] = torque[k, c]
+            w_prev[c] = omega[k, c]
 
 class LongitudinalParams(NamedTuple):
     """Every longitudinal method's parameters, whole (SI), and which one runs: ``method`` its
-    index in :data:`METHODS` (the code :func:`longitudinal_rows` dispatches on)."""
+    registry code (:data:`UKF` …, what :func:`longitudinal_rows` dispatches on)."""
 
     method: int
     iw: float  # wheel inertia, kg m²
@@ -679,16 +742,16 @@ class LongitudinalParams(NamedTuple):
 
 class LongitudinalState(NamedTuple):
     """The longitudinal methods' states: the UKFs' ``x``, ``P`` and ω̇ window (``hist_t``,
-    ``hist_w``), ukf_rw's previous torque, the observers' ``state`` (3, 4) and the previous
-    sample ``prev`` (3, 4: t, T, ω; t NaN before the first)."""
+    ``hist_w``), ukf_rw's previous torque, the PID and UIO observers' ``observer`` and the
+    previous sample ``prev`` of the PID, UIO and naive kernels."""
 
     x: np.ndarray
     P: np.ndarray
     hist_t: np.ndarray
     hist_w: np.ndarray
     prev_torque: np.ndarray
-    state: np.ndarray
-    prev: np.ndarray
+    observer: ObserverState
+    prev: PreviousSample
 
 
 @njit(**_JIT)
@@ -705,9 +768,10 @@ def longitudinal_rows(p: LongitudinalParams, s: LongitudinalState, t: np.ndarray
     elif m == UKF_RW:
         ukf_rw_kernel(p, s, t, omega, torque, fx, sigma, np.empty(fx.shape, dtype=np.bool_))
     elif m == PID:
-        pid_kernel(t, omega, torque, p.iw, p.radius, p.eta1, p.eta2, p.eta3, s.state, s.prev, fx)
+        pid_kernel(t, omega, torque, p.iw, p.radius, p.eta1, p.eta2, p.eta3, s.observer, s.prev,
+                   fx)
     elif m == UIO:
-        uio_kernel(t, omega, torque, p.iw, p.radius, p.kp, p.f0, s.state[:2], s.prev, fx)
+        uio_kernel(t, omega, torque, p.iw, p.radius, p.kp, p.f0, s.observer, s.prev, fx)
     else:
         naive_kernel(t, omega, torque, p.iw, p.radius, s.prev, fx)
 
@@ -726,17 +790,19 @@ class LongitudinalEstimator:
         if method not in METHODS:
             raise ValueError(f"longitudinal force method {method!r}: use one of {', '.join(METHODS)}")
         self.method = method
+        self.code = _REGISTERED[method].code
+        """The method's registry code."""
         self.iw = vehicle.body.wheel_inertia
         self.radius = vehicle.body.wheel_radius
         self.ukf = ukf or UKFParams()
         self.kernel_params = ukf_params(self.ukf, self.iw, self.radius)
         self.pid = pid or PIDParams()
         self.uio = uio or UIOParams()
-        dim = 3 if method == "ukf" else 2
+        dim = 3 if self.code == UKF else 2
         wm, wc, tau = ukf_weights(dim)
         u, pid, uio = self.ukf, self.pid, self.uio
         self.params = LongitudinalParams(
-            METHODS.index(method), float(self.iw), float(self.radius), self.kernel_params,
+            self.code, float(self.iw), float(self.radius), self.kernel_params,
             float(u.r_omega), float(u.r_torque), float(u.q_force), float(u.q_force_high),
             float(u.omega_dot_high), float(u.p0_force), float(pid.eta1), float(pid.eta2),
             float(pid.eta3), float(uio.kp), float(uio.f0), wm, wc, float(tau))
@@ -745,15 +811,13 @@ class LongitudinalEstimator:
     def reset(self) -> None:
         """Forget the state; the next sample initialises it."""
         window = self.ukf.omega_dot_window
-        dim = 3 if self.method == "ukf" else 2
-        prev = np.zeros((3, 4))
-        prev[0] = np.nan  # "no previous sample" (read by the naive kernel)
+        dim = 3 if self.code == UKF else 2
         # ukf: columns 3.. of x hold the switches' and noise trackers' state (X_* constants)
         self.state = LongitudinalState(
-            x=np.zeros((4, UKF_COLS if self.method == "ukf" else dim)),
+            x=np.zeros((4, UKF_COLS if self.code == UKF else dim)),
             P=np.zeros((4, dim, dim)), hist_t=np.full(window, np.nan),
-            hist_w=np.zeros((window, 4)), prev_torque=np.zeros(4), state=np.zeros((3, 4)),
-            prev=prev)
+            hist_w=np.zeros((window, 4)), prev_torque=np.zeros(4),
+            observer=new_observer_state(), prev=new_previous_sample())
 
     def advance(self, t: np.ndarray, omega: np.ndarray,
                 torque: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

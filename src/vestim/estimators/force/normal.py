@@ -43,13 +43,25 @@ import numpy as np
 from numba import njit
 
 from vestim.constants import G
+from vestim.estimators.registry import register, registered
 from vestim.io.vehicle import Vehicle
 from vestim.models.kinematics import euler_rates, middle_wheel_speed
 from vestim.params import pack
 
 _JIT: dict[str, Any] = {"cache": True, "error_model": "numpy"}
 
-MODES: tuple[str, ...] = ("static", "dynamic")
+register("normal", "static", "load transfer with the quasi-static elastic roll moment "
+         "m (h − h_rc)(f_y + f_z sin φ)", default=True,
+         cite="001 eq. (15) (our corrected form of 000 eq. (14), 001 eq. (17))",
+         tables=("force_params",), needs_wheel_speeds=False)
+register("normal", "dynamic", "load transfer with the roll moment of the suspension states "
+         "k_φ φ̂ + c_φ p", cite="001 eq. (15)–(17), 000 Sec. II-B",
+         tables=("force_params",), needs_wheel_speeds=False)
+_REGISTERED = registered("normal")
+MODES: tuple[str, ...] = tuple(_REGISTERED)
+"""The normal-load models' names, in the registry's order."""
+STATIC, DYNAMIC = (_REGISTERED[name].code for name in ("static", "dynamic"))
+"""The normal-load models' registry codes."""
 
 
 class AttitudeKernelParams(NamedTuple):
@@ -73,8 +85,42 @@ class AttitudeKernelParams(NamedTuple):
     gravity: float  # 1: the accelerometers read the attitude's gravity, 0: gravity-free (INS)
 
 
-N_ATTITUDE = 14
-"""Length of :func:`attitude_kernel`'s state array."""
+class AttitudeState(NamedTuple):
+    """State of :func:`attitude_kernel` (in place); each field a 1-element array,
+    :func:`new_attitude_state` makes a fresh one.
+
+    Attributes:
+        roll, pitch: φ̂, θ̂, rad.
+        t_prev: time of the previous sample, s.
+        started: 1.0 once the first sample started the filter.
+        p_lp, p_acc: the roll rate's differentiator: p̄ (rad/s) and ṗ̄ (rad/s²).
+        q_lp, q_acc: the pitch rate's: q̄ (rad/s) and q̇̄ (rad/s²).
+        roll_bias: b̂_p, the roll gyro's bias, rad/s.
+        sxx, sx, s1, sxe, se: the roll-gradient regression's forgotten sums [Σx², Σx, Σ1,
+            Σx e, Σe] (:func:`_roll_gradient`).
+    """
+
+    roll: np.ndarray
+    pitch: np.ndarray
+    t_prev: np.ndarray
+    started: np.ndarray
+    p_lp: np.ndarray
+    p_acc: np.ndarray
+    q_lp: np.ndarray
+    q_acc: np.ndarray
+    roll_bias: np.ndarray
+    sxx: np.ndarray
+    sx: np.ndarray
+    s1: np.ndarray
+    sxe: np.ndarray
+    se: np.ndarray
+
+
+def new_attitude_state() -> AttitudeState:
+    """A fresh :class:`AttitudeState` (the next sample starts the filter)."""
+    return AttitudeState(*(np.zeros(1) for _ in AttitudeState._fields))
+
+
 ROLL_ID_CORRELATION = 0.5
 """Correlation time of the sideslip acceleration in the roll-gradient regression, s."""
 ROLL_GRADIENT_RANGE = (-0.01, 0.03)
@@ -102,10 +148,10 @@ def attitude_params(config: Any, c_roll: float, c_pitch: float, radius: float,
 
 
 @njit(**_JIT)
-def _roll_gradient(prm: AttitudeKernelParams, state: np.ndarray, dt: float, ay: float,
+def _roll_gradient(prm: AttitudeKernelParams, state: AttitudeState, dt: float, ay: float,
                    r: float, v: float) -> None:
     """One sample of the online roll gradient k (rad per m/s²; :func:`roll_gradient_estimate`
-    solves for it), state[9:14] the forgotten sums [Σx², Σx, Σ1, Σx e, Σe] of the regression
+    solves for it), ``state.sxx`` … ``se`` the forgotten sums [Σx², Σx, Σ1, Σx e, Σe] of the regression
     e = k x + b.
 
     e = (a_y − r v)/g is the tilt the lateral specific force shows beyond the centripetal
@@ -121,31 +167,35 @@ def _roll_gradient(prm: AttitudeKernelParams, state: np.ndarray, dt: float, ay: 
     (NaN v): the sums are only forgotten.
     """
     lam = np.exp(-dt / prm.roll_id_tau)
-    for j in range(9, 14):
-        state[j] *= lam
+    state.sxx[0] *= lam
+    state.sx[0] *= lam
+    state.s1[0] *= lam
+    state.sxe[0] *= lam
+    state.se[0] *= lam
     if not np.isnan(v) and not np.isnan(ay) and not np.isnan(r):
         w = dt / (prm.roll_id_noise * prm.roll_id_noise * ROLL_ID_CORRELATION)
         x = r * v
         e = (ay - x) / G
-        state[9] += w * x * x
-        state[10] += w * x
-        state[11] += w
-        state[12] += w * x * e
-        state[13] += w * e
+        state.sxx[0] += w * x * x
+        state.sx[0] += w * x
+        state.s1[0] += w
+        state.sxe[0] += w * x * e
+        state.se[0] += w * e
 
 
 @njit(**_JIT)
-def roll_gradient_estimate(prm: AttitudeKernelParams, state: np.ndarray) -> tuple[float, float]:
+def roll_gradient_estimate(prm: AttitudeKernelParams,
+                           state: AttitudeState) -> tuple[float, float]:
     """The roll gradient k and its one-sigma (rad per m/s²) that :func:`_roll_gradient`'s
     sums and the priors give (k₀ ± σ_k before any sample): the normal equations of (k, b)
     and the inverse of their information; k is clipped to :data:`ROLL_GRADIENT_RANGE`."""
     pk = 1.0 / (prm.roll_gradient_sd * prm.roll_gradient_sd)
     pb = 1.0 / (ROLL_BIAS_SD * ROLL_BIAS_SD)
-    m11 = state[9] + pk
-    m12 = state[10]
-    m22 = state[11] + pb
-    b1 = state[12] + pk * prm.roll_gradient_prior
-    b2 = state[13]
+    m11 = state.sxx[0] + pk
+    m12 = state.sx[0]
+    m22 = state.s1[0] + pb
+    b1 = state.sxe[0] + pk * prm.roll_gradient_prior
+    b2 = state.se[0]
     det = m11 * m22 - m12 * m12
     k = (b1 * m22 - m12 * b2) / det
     return (min(max(k, ROLL_GRADIENT_RANGE[0]), ROLL_GRADIENT_RANGE[1]),
@@ -153,12 +203,22 @@ def roll_gradient_estimate(prm: AttitudeKernelParams, state: np.ndarray) -> tupl
 
 
 @njit(**_JIT)
+def _differentiate(z_lp: np.ndarray, z_acc: np.ndarray, z: float, dt: float,
+                   wn: float) -> None:
+    """One semi-implicit Euler step ``dt`` (s) of the critically damped second-order
+    differentiator of corner ``wn`` (rad/s) towards the rate ``z``: ``z_lp`` the filtered rate,
+    ``z_acc`` its derivative (1-element arrays, in place)."""
+    z_acc[0] += dt * (wn * wn * (z - z_lp[0]) - 2.0 * wn * z_acc[0])
+    z_lp[0] += dt * z_acc[0]
+
+
+@njit(**_JIT)
 def attitude_kernel(t: np.ndarray, ax: np.ndarray, ay: np.ndarray, p: np.ndarray,
                     q: np.ndarray, r: np.ndarray, omega: np.ndarray, prm: AttitudeKernelParams,
-                    state: np.ndarray, roll: np.ndarray, pitch: np.ndarray,
+                    state: AttitudeState, roll: np.ndarray, pitch: np.ndarray,
                     roll_acc: np.ndarray, pitch_acc: np.ndarray, fy_sd: np.ndarray) -> None:
-    """Attitude filter over a chunk, in place on ``state`` = [φ̂, θ̂, t_prev, started,
-    p̄, ṗ̄, q̄, q̇̄, b̂_p, and the roll-gradient regression's five sums] (:data:`N_ATTITUDE`).
+    """Attitude filter over a chunk, in place on ``state`` (:class:`AttitudeState`: φ̂, θ̂,
+    the rate differentiators, b̂_p and the roll-gradient regression's five sums).
 
     ``fy_sd`` (n,): the relative one-sigma that the roll leaves in the road-plane f_y, g σ_k
     where the roll gradient k is identified (no roll rate, no stated suspension; σ_k from
@@ -224,55 +284,59 @@ def attitude_kernel(t: np.ndarray, ax: np.ndarray, ay: np.ndarray, p: np.ndarray
         if model_gain > 0.0:  # a stated suspension: its quasi-static roll is the reference
             phi_g = c_roll * ay[k]
         th_ss = c_pitch * ax[k]
-        if state[3] == 0.0:
+        if state.started[0] == 0.0:
             c_now = prm.roll_gradient_prior if prm.roll_identify else c_roll
-            state[0] = phi_g if not np.isnan(p[k]) else c_now * ay[k]
-            state[9:14] = 0.0
-            state[1] = th_ss
-            state[3] = 1.0
-            state[4] = 0.0 if np.isnan(p[k]) else p[k]
-            state[6] = 0.0 if np.isnan(q[k]) else q[k]
-            state[5] = 0.0
-            state[7] = 0.0
-            state[8] = 0.0
+            state.roll[0] = phi_g if not np.isnan(p[k]) else c_now * ay[k]
+            state.sxx[0] = 0.0
+            state.sx[0] = 0.0
+            state.s1[0] = 0.0
+            state.sxe[0] = 0.0
+            state.se[0] = 0.0
+            state.pitch[0] = th_ss
+            state.started[0] = 1.0
+            state.p_lp[0] = 0.0 if np.isnan(p[k]) else p[k]
+            state.q_lp[0] = 0.0 if np.isnan(q[k]) else q[k]
+            state.p_acc[0] = 0.0
+            state.q_acc[0] = 0.0
+            state.roll_bias[0] = 0.0
         else:
-            dt = t[k] - state[2]
+            dt = t[k] - state.t_prev[0]
             # Second-order differentiators (semi-implicit Euler, stable for ω_n dt < 2).
-            for j, z in ((4, p[k]), (6, q[k])):
-                if not np.isnan(z):
-                    state[j + 1] += dt * (wn * wn * (z - state[j]) - 2.0 * wn * state[j + 1])
-                    state[j] += dt * state[j + 1]
+            if not np.isnan(p[k]):
+                _differentiate(state.p_lp, state.p_acc, p[k], dt, wn)
+            if not np.isnan(q[k]):
+                _differentiate(state.q_lp, state.q_acc, q[k], dt, wn)
             # Euler rates at the previous sample's attitude (explicit Euler for both angles)
             roll_rate, pitch_rate = euler_rates(0.0 if np.isnan(p[k]) else p[k],
                                                 0.0 if np.isnan(q[k]) else q[k], r[k],
-                                                state[0], state[1])
+                                                state.roll[0], state.pitch[0])
             if np.isnan(p[k]):
                 c_now = c_roll
                 if prm.roll_identify:
                     _roll_gradient(prm, state, dt, ay[k], r[k], v_w)
                     c_now, k_sd = roll_gradient_estimate(prm, state)
-                state[0] = c_now * ay[k]
+                state.roll[0] = c_now * ay[k]
             else:
                 if model_gain > 0.0:
-                    state[0] += dt * (roll_rate + model_gain * (phi_g - state[0]))
+                    state.roll[0] += dt * (roll_rate + model_gain * (phi_g - state.roll[0]))
                 else:
                     # Second-order complementary filter: the integral state b̂_p takes the
                     # roll gyro's bias, which a first-order filter would leave as a roll
                     # error b_p τ_φ (0.002 rad/s × 2 s: 80–150 N of gravity in m f_y).
-                    err = phi_g - state[0]
+                    err = phi_g - state.roll[0]
                     e = err / e_slide
                     w = 1.0 / (1.0 + e * e)
-                    state[0] += dt * (roll_rate - state[8] + w * err / tau)
-                    state[8] -= dt * w * err / (tau * tau_b)
+                    state.roll[0] += dt * (roll_rate - state.roll_bias[0] + w * err / tau)
+                    state.roll_bias[0] -= dt * w * err / (tau * tau_b)
             if np.isnan(q[k]):
-                state[1] = th_ss
+                state.pitch[0] = th_ss
             else:
-                state[1] += dt * (pitch_rate + pitch_gain * (th_ss - state[1]))
-        state[2] = t[k]
-        roll[k] = state[0]
-        pitch[k] = state[1]
-        roll_acc[k] = state[5]
-        pitch_acc[k] = state[7]
+                state.pitch[0] += dt * (pitch_rate + pitch_gain * (th_ss - state.pitch[0]))
+        state.t_prev[0] = t[k]
+        roll[k] = state.roll[0]
+        pitch[k] = state.pitch[0]
+        roll_acc[k] = state.p_acc[0]
+        pitch_acc[k] = state.q_acc[0]
         fy_sd[k] = G * k_sd if (np.isnan(p[k]) and prm.roll_identify) else 0.0
 
 
@@ -363,7 +427,8 @@ def normal_loads(f_x: np.ndarray, f_y: np.ndarray, f_z: np.ndarray, roll: np.nda
     arrays = [np.ascontiguousarray(a, dtype=float) for a in (f_x, f_y, f_z, roll, pitch,
                                                               roll_rate, pitch_rate, roll_acc,
                                                               pitch_acc)]
-    return normal_loads_kernel(*arrays, normal_load_params(vehicle), mode == "dynamic")
+    return normal_loads_kernel(*arrays, normal_load_params(vehicle),
+                               _REGISTERED[mode].code == DYNAMIC)
 
 
 def normal_loads_paper(ax: np.ndarray, ay: np.ndarray, az: np.ndarray, roll: np.ndarray,
