@@ -30,6 +30,7 @@ import numpy as np
 from numba import njit
 from numba.core import types
 from numba.experimental import structref
+from numba.np.arraymath import _median_inner
 
 from vestim.estimators import registry
 from vestim.estimators.force.estimator import (
@@ -322,12 +323,125 @@ class Params(NamedTuple):
     col: np.ndarray
 
 
+class Scratch(NamedTuple):
+    """Working arrays of :func:`pipeline_rows`, allocated once (:func:`new_scratch`) and
+    reused by every block: a block of m samples uses the views ``[:m]`` of the (BLOCK, …)
+    arrays, so a block allocates none of its intermediates. Each holds only values of the
+    block in hand (nothing carries from one block to the next); units are those of the
+    quantity its name gives (the stages' own: s, rad/s, N m, m/s², rad, N, m/s)."""
+
+    # (BLOCK,): per sample
+    t: np.ndarray
+    ax: np.ndarray
+    ay: np.ndarray
+    az: np.ndarray
+    r: np.ndarray
+    p_rate: np.ndarray
+    q_rate: np.ndarray
+    chan: np.ndarray  # a column of x made contiguous for one kernel call
+    v_w: np.ndarray
+    roll: np.ndarray
+    pitch: np.ndarray
+    roll_acc: np.ndarray
+    pitch_acc: np.ndarray
+    fy_sd: np.ndarray
+    fxa: np.ndarray
+    drag: np.ndarray
+    speed: np.ndarray
+    c_y: np.ndarray
+    scale: np.ndarray
+    latency: np.ndarray
+    gnss: np.ndarray
+    vx_cg: np.ndarray
+    vy_cg: np.ndarray
+    delta_front: np.ndarray
+    yaw_acc: np.ndarray
+    axc: np.ndarray
+    ayc: np.ndarray
+    vg: np.ndarray
+    vxr: np.ndarray
+    vyr: np.ndarray
+    vx_f: np.ndarray
+    n_high: np.ndarray  # int64
+    # (BLOCK, 2): CG (v_x, v_y), the axle pair, the extra speed measurements
+    axle: np.ndarray
+    extra: np.ndarray
+    extra_var: np.ndarray
+    v_ref: np.ndarray
+    sig_ref: np.ndarray
+    v: np.ndarray
+    sig: np.ndarray
+    v_fused: np.ndarray
+    sig_fused: np.ndarray
+    # (BLOCK, 4): per corner
+    omega: np.ndarray
+    omega_v: np.ndarray
+    torque: np.ndarray
+    delta: np.ndarray
+    fx: np.ndarray
+    sig_fx: np.ndarray
+    fy: np.ndarray
+    sig_fy: np.ndarray
+    bias_ref: np.ndarray  # the reference filter's biases (4 per sample, not per corner)
+    bias: np.ndarray
+    bias_fused: np.ndarray
+    trust: np.ndarray
+    conf: np.ndarray
+    vxt: np.ndarray
+    vyt: np.ndarray
+    sr: np.ndarray
+    sa: np.ndarray
+    f_inertia: np.ndarray
+    zero4: np.ndarray
+    nan4: np.ndarray
+    omega_dot: np.ndarray
+    a_xt: np.ndarray
+    a_yt: np.ndarray
+    vxt_g: np.ndarray
+    vyt_in: np.ndarray
+    vxt_r: np.ndarray
+    vyt_r: np.ndarray
+    slip: np.ndarray
+    vx_b: np.ndarray
+    vy_b: np.ndarray
+    phi: np.ndarray
+    fw: np.ndarray
+    hint: np.ndarray  # bool
+    corner: CornerOutputs
+    # one sample's: the median's workspace, friction, validity and uncertainty outputs
+    med: np.ndarray
+    mu: np.ndarray
+    smu: np.ndarray
+    ex: np.ndarray
+    fz_i: np.ndarray
+    valid: np.ndarray
+    reason: np.ndarray
+    sigma: np.ndarray
+
+
+def new_scratch() -> Scratch:
+    """A :class:`Scratch` for blocks of up to :data:`BLOCK` samples (its values unset)."""
+    fields = Scratch._fields
+    wide = {name: 2 for name in fields[fields.index("axle"):fields.index("omega")]}
+    wide |= {name: 4 for name in fields[fields.index("omega"):fields.index("hint")]}
+    arrays = {name: np.empty((BLOCK, wide[name]) if name in wide else BLOCK)
+              for name in fields[:fields.index("hint")]}
+    arrays["n_high"] = np.zeros(BLOCK, dtype=np.int64)
+    corner = CornerOutputs(*(np.empty((BLOCK, 4), dtype=np.bool_ if name == "high" else
+                                      np.float64) for name in CornerOutputs._fields))
+    return Scratch(**arrays, hint=np.zeros((BLOCK, 4), dtype=np.bool_), corner=corner,
+                   med=np.empty(4), mu=np.empty(4), smu=np.empty(4), ex=np.empty(4),
+                   fz_i=np.empty(4), valid=np.empty(_N_GROUPS), reason=np.empty(_N_GROUPS),
+                   sigma=np.empty(N_SIGMA))
+
+
 class State(NamedTuple):
-    """The whole pipeline's state."""
+    """The whole pipeline's state, and the blocks' working arrays (:class:`Scratch`)."""
 
     force: ForceState
     velocity: VelocityState
     post: PostState
+    scratch: Scratch
 
 
 FUSED, REFERENCE, KINEMATIC = (registry.lookup("velocity", n).code
@@ -388,82 +502,104 @@ def _put4(Y: np.ndarray, col: np.ndarray, j: int, values: np.ndarray, k0: int) -
 def _block(P: Params, S: State, x: np.ndarray, Y: np.ndarray, k0: int) -> None:
     """The samples ``x`` (m, :data:`N_X`) through the stages, stage by stage, into Y's
     columns k0 … k0 + m − 1 (the sample-by-sample recursions of each stage: the split into
-    blocks changes no number)."""
+    blocks changes no number). The intermediates are views of ``S.scratch``."""
     fp = P.force
     fs = S.force
     vp = P.velocity
     vs = S.velocity
+    sc = S.scratch
     m = x.shape[0]
-    t = x[:, X_T].copy()
-    omega = x[:, X_OMEGA:X_OMEGA + 4].copy()
-    torque = x[:, X_TORQUE:X_TORQUE + 4].copy()
-    ay = x[:, X_AY].copy()
-    r = x[:, X_R].copy()
-    p_rate = x[:, X_P].copy()
-    q_rate = x[:, X_Q].copy()
-    delta = np.zeros((m, 4))
-    delta[:, 0] = x[:, X_DELTA]
-    delta[:, 1] = x[:, X_DELTA + 1]
+    t = sc.t[:m]
+    omega = sc.omega[:m]
+    torque = sc.torque[:m]
+    ay = sc.ay[:m]
+    r = sc.r[:m]
+    p_rate = sc.p_rate[:m]
+    q_rate = sc.q_rate[:m]
+    delta = sc.delta[:m]
+    for i in range(m):
+        t[i] = x[i, X_T]
+        ay[i] = x[i, X_AY]
+        r[i] = x[i, X_R]
+        p_rate[i] = x[i, X_P]
+        q_rate[i] = x[i, X_Q]
+        for c in range(4):
+            omega[i, c] = x[i, X_OMEGA + c]
+            torque[i, c] = x[i, X_TORQUE + c]
+        delta[i, 0] = x[i, X_DELTA]
+        delta[i, 1] = x[i, X_DELTA + 1]
+        delta[i, 2] = delta[i, 3] = 0.0
     radius = fp.radius
     xw, yw = fp.xw, fp.yw
     att = fp.attitude
     sensors = P.sensors
     # --- force stage (ForceEstimator.advance) ---
+    ax = sc.ax[:m]
+    chan = sc.chan[:m]
     if sensors.ax:
-        ax = x[:, X_AX].copy()
+        ax[:] = x[:, X_AX]
     elif sensors.omega:  # from the wheel speeds (ForceEstimator._speed_inputs)
-        ax = np.empty(m)
         wheel_reference_speed(t, omega, r, yw, radius, att.undriven_axle, AX_TAU[0], AX_TAU[1],
                               fs.ax_state, ax)
     else:  # from the speed
-        ax = np.empty(m)
         if sensors.vehicle_speed:
-            speed_derivative(t, x[:, X_VSPEED].copy(), AX_TAU[0], AX_TAU[1], fs.ax_state, ax)
+            chan[:] = x[:, X_VSPEED]
+            speed_derivative(t, chan, AX_TAU[0], AX_TAU[1], fs.ax_state, ax)
         else:
-            speed_derivative(t, x[:, X_GNSS].copy(), AX_TAU_SPARSE[0], AX_TAU_SPARSE[1],
-                             fs.ax_state, ax)
+            chan[:] = x[:, X_GNSS]
+            speed_derivative(t, chan, AX_TAU_SPARSE[0], AX_TAU_SPARSE[1], fs.ax_state, ax)
     if not sensors.omega:  # the wheels roll at the speed
-        v_w = np.empty(m)
+        v_w = sc.v_w[:m]
         if sensors.vehicle_speed:
             v_w[:] = x[:, X_VSPEED]
         else:
-            speed_hold(t, x[:, X_GNSS].copy(), ax, fs.hold_state, v_w)
+            chan[:] = x[:, X_GNSS]
+            speed_hold(t, chan, ax, fs.hold_state, v_w)
         for i in range(m):
             w = v_w[i] / radius
             for c in range(4):
                 omega[i, c] = w
-    roll = np.empty(m)
-    pitch = np.empty(m)
-    roll_acc = np.empty(m)
-    pitch_acc = np.empty(m)
-    fy_sd = np.empty(m)
+    roll = sc.roll[:m]
+    pitch = sc.pitch[:m]
+    roll_acc = sc.roll_acc[:m]
+    pitch_acc = sc.pitch_acc[:m]
+    fy_sd = sc.fy_sd[:m]
     attitude_kernel(t, ax, ay, p_rate, q_rate, r, omega, att, fs.attitude, roll, pitch,
                     roll_acc, pitch_acc, fy_sd)
     # the attitude's gravity as the accelerometers read it (none in an INS's output)
     g_roll, g_pitch = att.gravity * roll, att.gravity * pitch
-    az = x[:, X_AZ].copy() if sensors.az else level_road_az(ax, ay, g_roll, g_pitch)
+    if sensors.az:
+        az = sc.az[:m]
+        az[:] = x[:, X_AZ]
+    else:
+        az = level_road_az(ax, ay, g_roll, g_pitch)
     fxa, fya, fza = road_specific_force(ax, ay, az, g_roll, g_pitch)
     if not sensors.ax:  # a speed's derivative is already the road-plane acceleration
-        fxa = ax.copy()
+        fxa = sc.fxa[:m]
+        fxa[:] = ax
     lxa, lya, lza, noise = load_specific_force(fp.load_filter, fp.load_filter_on, fs.load_filter,
                                                t, fxa, fya, fza, r)
     fz = normal_loads_kernel(lxa, lya, lza, roll, pitch, p_rate, q_rate, roll_acc, pitch_acc,
                              fp.normal, fp.dynamic)
     if not sensors.torque:
-        torque = _chassis_torques(fp, fs, t, omega, fxa, fya, delta, fz)
+        torque = _chassis_torques(fp, fs, sc, t, omega, fxa, fya, delta, fz)
     teff = torque_less_rolling_resistance(torque, omega, fz, fp.rolling_moment)
-    fx = np.empty((m, 4))
-    sig_fx = np.full((m, 4), np.nan)
+    fx = sc.fx[:m]
+    sig_fx = sc.sig_fx[:m]
+    sig_fx[:] = np.nan
     longitudinal_rows(fp.lon, fs.lon, t, omega, teff, fx, sig_fx)
-    drag = np.empty(m)
-    speed = np.empty(m)
+    drag = sc.drag[:m]
+    speed = sc.speed[:m]
+    med = sc.med
     for i in range(m):
         w_mean = 0.25 * (omega[i, 0] + omega[i, 1] + omega[i, 2] + omega[i, 3])
         drag[i] = fp.drag_coef * (radius * w_mean) ** 2
-        speed[i] = radius * np.median(omega[i])
+        for c in range(4):
+            med[c] = omega[i, c]
+        speed[i] = radius * _median_inner(med, 4)  # np.median's own, on a reused workspace
     weights = split_weights(fz, omega, torque, r, radius, yw, fp.load_exponent, fp.slip_scale)
-    fy = np.empty((m, 4))
-    sig_fy = np.empty((m, 4))
+    fy = sc.fy[:m]
+    sig_fy = sc.sig_fy[:m]
     lateral_kernel(fp.lateral, fs.lateral, t, fx, delta, weights, fxa, fya, r, noise, drag, fz,
                    speed, fy, sig_fy)
     if not sensors.omega:  # per-corner F_x needs the wheels' own speeds
@@ -472,29 +608,33 @@ def _block(P: Params, S: State, x: np.ndarray, Y: np.ndarray, k0: int) -> None:
     # --- velocity stage ---
     mu_x = normalised(fx, fz)
     mu_y = normalised(fy, fz)
-    axle = np.empty((m, 2))
-    c_y = np.empty(m)
+    axle = sc.axle[:m]
+    c_y = sc.c_y[:m]
     _stiffness_rows(vp.stiffness, vs.stiffness, 0, m, t, omega, r, delta, fy, fz, axle, c_y)
     # The wheel speeds at the effective radius that the GNSS speed shows, and the fixes
     # brought forward by the receiver's latency (scale 1 and no fix without gnss_speed).
-    scale = np.empty(m)
-    latency = np.empty(m)
-    gnss = np.empty(m)
-    extra = np.empty((m, 2))
-    extra_var = np.empty((m, 2))
+    scale = sc.scale[:m]
+    latency = sc.latency[:m]
+    gnss = sc.gnss[:m]
+    extra = sc.extra[:m]
+    extra_var = sc.extra_var[:m]
     omega_v = omega
     if sensors.omega:
-        gnss_calibration(vp.radius, vs.radius, t, omega, x[:, X_GNSS].copy(), scale, latency,
-                         gnss)
+        chan[:] = x[:, X_GNSS]
+        gnss_calibration(vp.radius, vs.radius, t, omega, chan, scale, latency, gnss)
         for i in range(m):
             if scale[i] != 1.0:
-                omega_v = omega * scale.reshape(m, 1)
+                omega_v = sc.omega_v[:m]
+                for k in range(m):
+                    for c in range(4):
+                        omega_v[k, c] = omega[k, c] * scale[k]
                 break
     else:  # no wheel speeds to scale nor to find the latency against; ω unknown to the filter
         scale[:] = np.nan
         latency[:] = np.nan
         gnss[:] = x[:, X_GNSS]
-        omega_v = np.full((m, 4), np.nan)
+        omega_v = sc.omega_v[:m]
+        omega_v[:] = np.nan
     # A fix's error is white at the receiver's rate: undo the τ_wheel/T_s inflation the
     # filter gives every extra CG-speed measurement, so its weight does not depend on the
     # log's sample rate.
@@ -512,17 +652,20 @@ def _block(P: Params, S: State, x: np.ndarray, Y: np.ndarray, k0: int) -> None:
         else:
             extra[i, 1] = extra_var[i, 1] = np.nan
     vs.t_gnss[0] = t_prev
-    v_ref = np.empty((m, 2))
-    sig_ref = np.empty((m, 2))
-    bias_ref = np.empty((m, 4))
-    trust = np.empty((m, 4))
+    v_ref = sc.v_ref[:m]
+    sig_ref = sc.sig_ref[:m]
+    bias_ref = sc.bias_ref[:m]
+    trust = sc.trust[:m]
     method = vp.method
-    conf = np.full((m, 4), np.nan)  # the opinion fusion's confidences
+    conf = sc.conf[:m]
+    conf[:] = np.nan  # the opinion fusion's confidences
     if method == KINEMATIC:
-        v = np.empty((m, 2))
+        v = sc.v[:m]
         kinematic_kernel(t, omega_v, fxa, fya, r, radius, vs.kinematic, v)
-        sig = np.full((m, 2), np.nan)
-        bias = np.full((m, 4), np.nan)
+        sig = sc.sig[:m]
+        sig[:] = np.nan
+        bias = sc.bias[:m]
+        bias[:] = np.nan
     else:
         prev = vs.prev
         same = method == FUSED and prev[2] == 1.0
@@ -538,67 +681,76 @@ def _block(P: Params, S: State, x: np.ndarray, Y: np.ndarray, k0: int) -> None:
         sig = sig_ref
         bias = bias_ref
         if method != REFERENCE and sensors.omega:  # without them "fused" is the reference
-            vx_f, n_high = _corners_vx(P, S, t, omega_v, delta, r, fxa, fya, mu_x,
-                                       normalised(fy, fz), v_ref, bias_ref, conf)
+            vx_f, n_high = _corners_vx(P, S, t, omega_v, delta, r, fxa, fya, mu_x, mu_y, v_ref,
+                                       bias_ref, conf)
             if method == FUSED:
                 v, sig, bias = _fused(P, S, t, omega_v, torque, delta, r, fxa, fya, fy_sd,
                                       mu_x, axle, extra, extra_var, v_ref, sig_ref, bias_ref,
                                       same, vx_f, n_high)
             else:  # a corner observer: CG v_x by the fusion, v_y from the reference filter
-                v = np.empty((m, 2))
+                v = sc.v[:m]
                 for i in range(m):
                     v[i, 0] = vx_f[i]
                     v[i, 1] = v_ref[i, 1]
-                sig = np.full((m, 2), np.nan)
+                sig = sc.sig[:m]
+                sig[:] = np.nan
     # --- the corners' kinematics ---
-    vx_o, vy_o = transport_kernel(v[:, 0].copy(), v[:, 1].copy(), r, xw, yw, 1.0)
-    vxt = np.empty((m, 4))
-    vyt = np.empty((m, 4))
+    vx_cg = sc.vx_cg[:m]
+    vy_cg = sc.vy_cg[:m]
+    for i in range(m):
+        vx_cg[i] = v[i, 0]
+        vy_cg[i] = v[i, 1]
+    vx_o, vy_o = transport_kernel(vx_cg, vy_cg, r, xw, yw, 1.0)
+    vxt = sc.vxt[:m]
+    vyt = sc.vyt[:m]
     rotate_kernel(vx_o.reshape(-1), vy_o.reshape(-1), delta.reshape(-1), 1.0, vxt.reshape(-1),
                   vyt.reshape(-1))
-    sr = np.empty((m, 4))
+    sr = sc.sr[:m]
     slip_ratio_kernel(omega_v.reshape(-1), vxt.reshape(-1), radius, 0.1, sr.reshape(-1))
     if not sensors.omega:
         sr[:] = np.nan
         omega_v = omega  # the speed's, as the uncertainty stage reads them
-    sa = np.empty((m, 4))
+    sa = sc.sa[:m]
     slip_angle_kernel(vxt.reshape(-1), vyt.reshape(-1), 0.5, sa.reshape(-1))
     col = P.col
     _put(Y, col, 0, t, k0)
-    _put(Y, col, 1, v[:, 0].copy(), k0)
-    _put(Y, col, 2, v[:, 1].copy(), k0)
+    _put(Y, col, 1, vx_cg, k0)
+    _put(Y, col, 2, vy_cg, k0)
     j = 3
     for block in (vx_o, vy_o, vxt, vyt, sr, sa, fx, fy, fz, mu_x, mu_y, sig_fx, sig_fy):
         _put4(Y, col, j, block, k0)
         j += 4
     _put(Y, col, j, roll, k0)
     _put(Y, col, j + 1, pitch, k0)
-    _put(Y, col, j + 2, bias[:, 0].copy(), k0)
+    _put(Y, col, j + 2, bias[:, 0], k0)
     _put(Y, col, j + 3, c_y, k0)
     _put(Y, col, j + 4, scale, k0)
     _put(Y, col, j + 5, latency, k0)
     _put4(Y, col, _R_CONF, conf, k0)
-    _post(P.post, S.post, x, t, ax, v, sig, c_y, bias[:, 3].copy(),
+    _post(P.post, S.post, sc, x, t, ax, v, sig, c_y, bias[:, 3],
           Corners(fx, fy, fz, sig_fx, sig_fy, sr, sa, vxt, vyt, delta, omega_v), radius, Y, col,
           k0)
 
 
 @njit(**_JIT)
-def _chassis_torques(fp: ForceParams, fs: ForceState, t: np.ndarray, omega: np.ndarray,
-                     fxa: np.ndarray, fya: np.ndarray, delta: np.ndarray,
+def _chassis_torques(fp: ForceParams, fs: ForceState, sc: Scratch, t: np.ndarray,
+                     omega: np.ndarray, fxa: np.ndarray, fya: np.ndarray, delta: np.ndarray,
                      fz: np.ndarray) -> np.ndarray:
     """Net wheel torques (m, 4), N m, for a log without them (ForceEstimator.advance): the
     chassis equation with ω̇ from the longitudinal method run on zero torque (its output is
     −I_w ω̇̂/R, so the main run subtracts the same ω̇̂ and a wheel spinning up keeps only its
     share of the tire force)."""
     m = t.shape[0]
-    f_inertia = np.empty((m, 4))
-    longitudinal_rows(fp.lon, fs.inertia, t, omega, np.zeros((m, 4)), f_inertia,
-                      np.full((m, 4), np.nan))
+    f_inertia = sc.f_inertia[:m]
+    zero = sc.zero4[:m]
+    zero[:] = 0.0
+    unused = sc.nan4[:m]
+    unused[:] = np.nan
+    longitudinal_rows(fp.lon, fs.inertia, t, omega, zero, f_inertia, unused)
     ch = fp.chassis
     gain = -ch.radius / ch.wheel_inertia
-    omega_dot = np.empty((m, 4))
-    delta_front = np.empty(m)
+    omega_dot = sc.omega_dot[:m]
+    delta_front = sc.delta_front[:m]
     for i in range(m):
         delta_front[i] = (delta[i, 0] + delta[i, 1]) / 2.0
         for c in range(4):
@@ -627,38 +779,42 @@ def _corners_vx(P: Params, S: State, t: np.ndarray, omega: np.ndarray, delta: np
     cs = vs.corner
     xw, yw = P.force.xw, P.force.yw
     radius = P.force.radius
+    sc = S.scratch
     m = t.shape[0]
-    yaw_acc = np.empty(m)
+    yaw_acc = sc.yaw_acc[:m]
     yaw_acceleration_kernel(t, r, vs.prev, yaw_acc)  # prev[:2]: the previous (t, r)
-    axc = np.empty(m)
-    ayc = np.empty(m)
+    axc = sc.axc[:m]
+    ayc = sc.ayc[:m]
     for i in range(m):
         axc[i] = fxa[i] - bias_ref[i, 0]
         ayc[i] = fya[i] - bias_ref[i, 1]
     ax_i, ay_i = corner_acc_kernel(axc, ayc, r, yaw_acc, xw, yw)
-    a_xt = np.empty((m, 4))
-    a_yt = np.empty((m, 4))
+    a_xt = sc.a_xt[:m]
+    a_yt = sc.a_yt[:m]
     rotate_kernel(ax_i.reshape(-1), ay_i.reshape(-1), delta.reshape(-1), 1.0, a_xt.reshape(-1),
                   a_yt.reshape(-1))
-    vg = np.empty(m)
+    vg = sc.vg[:m]
     for i in range(m):
         vg[i] = radius * (0.25 * (omega[i, 0] + omega[i, 1] + omega[i, 2] + omega[i, 3]))
-    vyr = v_ref[:, 1].copy()
+    vyr = sc.vyr[:m]
+    vyr[:] = v_ref[:, 1]
     vx_i, vy_i = transport_kernel(vg, vyr, r, xw, yw, 1.0)
-    vxt_g = np.empty((m, 4))
-    vyt_in = np.empty((m, 4))
+    vxt_g = sc.vxt_g[:m]
+    vyt_in = sc.vyt_in[:m]
     rotate_kernel(vx_i.reshape(-1), vy_i.reshape(-1), delta.reshape(-1), 1.0,
                   vxt_g.reshape(-1), vyt_in.reshape(-1))
-    vxr_i, vyr_i = transport_kernel(v_ref[:, 0].copy(), vyr, r, xw, yw, 1.0)
-    vxt_r = np.empty((m, 4))
-    vyt_r = np.empty((m, 4))
+    vxr = sc.vxr[:m]
+    vxr[:] = v_ref[:, 0]
+    vxr_i, vyr_i = transport_kernel(vxr, vyr, r, xw, yw, 1.0)
+    vxt_r = sc.vxt_r[:m]
+    vyt_r = sc.vyt_r[:m]
     rotate_kernel(vxr_i.reshape(-1), vyr_i.reshape(-1), delta.reshape(-1), 1.0,
                   vxt_r.reshape(-1), vyt_r.reshape(-1))
-    k = CornerOutputs(np.empty((m, 4)), np.zeros((m, 4)), np.empty((m, 4)),
-                      np.empty((m, 4), dtype=np.bool_), np.empty((m, 4)), np.empty((m, 4)),
-                      np.empty((m, 4)), np.empty((m, 4)), np.empty((m, 4)))
-    inp = CornerInputs(t, omega, mu_x, mu_y, a_xt, a_yt, delta, r,
-                       np.zeros((m, 4), dtype=np.bool_), vyt_in)
+    k = _corner_outputs_rows(sc.corner, 0, m)
+    k.vyt[:] = 0.0  # what an observer does not estimate is left as given: v_yt 0
+    hint = sc.hint[:m]
+    hint[:] = False
+    inp = CornerInputs(t, omega, mu_x, mu_y, a_xt, a_yt, delta, r, hint, vyt_in)
     seed = -1  # the row after which the observers take the reference's velocity (SEED_AT)
     if vs.seeded[0] == 0.0:
         t0 = S.post.t_start[0] if not np.isnan(S.post.t_start[0]) else t[0]
@@ -681,25 +837,26 @@ def _corners_vx(P: Params, S: State, t: np.ndarray, omega: np.ndarray, delta: np
             for c in range(4):
                 if np.isnan(k_vyt[i, c]):
                     k_vyt[i, c] = 0.0
-    slip = np.empty((m, 4))
+    slip = sc.slip[:m]
     slip_ratio_kernel(omega.reshape(-1), vxt_r.reshape(-1), radius, 0.1, slip.reshape(-1))
-    vx_b = np.empty((m, 4))
-    vy_b = np.empty((m, 4))
+    vx_b = sc.vx_b[:m]
+    vy_b = sc.vy_b[:m]
     rotate_kernel(k_vxt.reshape(-1), k_vyt.reshape(-1), delta.reshape(-1), -1.0,
                   vx_b.reshape(-1), vy_b.reshape(-1))
-    phi = np.empty((m, 4))
+    phi = sc.phi[:m]
     for i in range(m):
         for c in range(4):
             phi[i, c] = vx_b[i, c] + r[i] * yw[c]
-    vx_f = np.empty(m)
-    fw = np.empty((m, 4))
+    vx_f = sc.vx_f[:m]
+    fw = sc.fw[:m]
     if vp.fusion == ADAPTIVE:
         adaptive_axle_kernel(phi, slip, vp.w_s, vp.w_range, vp.rho, vp.threshold, vx_f, fw)
     elif vp.fusion == OPINION:
         opinion_kernel(phi, slip, vp.k1, vp.k2, vp.w_floor, vp.band, vp.gamma, vx_f, fw, conf)
     else:
         fixed_axle_kernel(phi, vp.eta_front, vx_f, fw)
-    n_high = np.zeros(m, dtype=np.int64)
+    n_high = sc.n_high[:m]
+    n_high[:] = 0
     for i in range(m):
         for c in range(4):
             n_high[i] += 1 if k_high[i, c] else 0
@@ -744,10 +901,11 @@ def _fused(P: Params, S: State, t: np.ndarray, omega: np.ndarray, torque: np.nda
     if same and not any_slip:
         return v_ref, sig_ref, bias_ref
     vs.prev[2] = 0.0
-    v = np.empty((m, 2))
-    sig = np.empty((m, 2))
-    bias = np.empty((m, 4))
-    trust = np.empty((m, 4))
+    sc = S.scratch
+    v = sc.v_fused[:m]
+    sig = sc.sig_fused[:m]
+    bias = sc.bias_fused[:m]
+    trust = sc.trust[:m]  # the reference filter's, not read: written over
     _reference_rows(vp.reference, vs.fused, 0, m, t, omega, torque, mu_x, axle, fxa, fya,
                     fy_sd, r, delta, extra, extra_var, v, sig, bias, trust)
     return v, sig, bias
@@ -772,14 +930,15 @@ class Corners(NamedTuple):
 
 
 @njit(**_JIT)
-def _post(p: PostParams, st: PostState, x: np.ndarray, t: np.ndarray, ax: np.ndarray,
-          v: np.ndarray, sig: np.ndarray, c_y: np.ndarray, vy_unverified: np.ndarray,
-          corners: Corners, radius: float, Y: np.ndarray, col: np.ndarray, k0: int) -> None:
+def _post(p: PostParams, st: PostState, sc: Scratch, x: np.ndarray, t: np.ndarray,
+          ax: np.ndarray, v: np.ndarray, sig: np.ndarray, c_y: np.ndarray,
+          vy_unverified: np.ndarray, corners: Corners, radius: float, Y: np.ndarray,
+          col: np.ndarray, k0: int) -> None:
     """Friction, validity and uncertainty of a block (their per-sample steps) and its health
     flags, into Y (quantities from :data:`_R_MU` on). ``v``, ``sig`` (m, 2) the filter's
     velocity and σ, m/s; ``vy_unverified`` the time since the reference filter last accepted
     a v_y pseudo-measurement, s; ``radius`` the wheel radius, m (the consistency test's
-    R ω)."""
+    R ω); ``sc`` the one sample's working arrays."""
     fx, fy, fz, sig_fx, sig_fy = (corners.fx, corners.fy, corners.fz, corners.sig_fx,
                                   corners.sig_fy)
     sr, sa, vxt, vyt = corners.sr, corners.sa, corners.vxt, corners.vyt
@@ -787,10 +946,8 @@ def _post(p: PostParams, st: PostState, x: np.ndarray, t: np.ndarray, ax: np.nda
     m = t.shape[0]
     if np.isnan(st.t_start[0]):
         st.t_start[0] = t[0]
-    mu, smu, ex = np.empty(4), np.empty(4), np.empty(4)
-    valid, reason = np.empty(_N_GROUPS), np.empty(_N_GROUPS)
-    sigma = np.empty(N_SIGMA)
-    fz_i = np.empty(4)
+    mu, smu, ex, fz_i = sc.mu, sc.smu, sc.ex, sc.fz_i
+    valid, reason, sigma = sc.valid, sc.reason, sc.sigma
     for i in range(m):
         k = k0 + i
         vx = v[i, 0]
@@ -978,4 +1135,4 @@ def build(pipe: Pipeline, names: tuple[str, ...], sensors: Sensors) -> tuple[Par
     post_s = PostState(pipe._friction_state, pipe._unc_state, pipe._t_start,
                        pipe._consistency_state)
     return (Params(sensors, force_p, velocity_p, post_p, columns(names)),
-            State(force_s, velocity_s, post_s))
+            State(force_s, velocity_s, post_s, new_scratch()))
