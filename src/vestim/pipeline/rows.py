@@ -323,116 +323,53 @@ class Params(NamedTuple):
     col: np.ndarray
 
 
+(A_T, A_AX, A_AY, A_AZ, A_R, A_P_RATE, A_Q_RATE, A_CHAN, A_V_W, A_ROLL, A_PITCH,
+ A_ROLL_ACC, A_PITCH_ACC, A_FY_SD, A_FXA, A_DRAG, A_SPEED, A_C_Y, A_SCALE, A_LATENCY,
+ A_GNSS, A_VX_CG, A_VY_CG, A_DELTA_FRONT, A_YAW_ACC, A_AXC, A_AYC, A_VG, A_VXR, A_VYR,
+ A_VX_F, N_A) = range(32)
+"""Rows of :attr:`Scratch.one`: one value per sample."""
+(B_AXLE, B_EXTRA, B_EXTRA_VAR, B_V_REF, B_SIG_REF, B_V, B_SIG, B_V_FUSED, B_SIG_FUSED,
+ N_B) = range(10)
+"""Rows of :attr:`Scratch.two`: (v_x, v_y), the axle pair, the extra speed measurements."""
+(C_OMEGA, C_OMEGA_V, C_TORQUE, C_DELTA, C_FX, C_SIG_FX, C_FY, C_SIG_FY, C_BIAS_REF, C_BIAS,
+ C_BIAS_FUSED, C_TRUST, C_CONF, C_VXT, C_VYT, C_SR, C_SA, C_F_INERTIA, C_ZERO4, C_NAN4,
+ C_OMEGA_DOT, C_A_XT, C_A_YT, C_VXT_G, C_VYT_IN, C_VXT_R, C_VYT_R, C_SLIP, C_VX_B, C_VY_B,
+ C_PHI, C_FW, C_K_VXT, C_K_VYT, C_K_SIGMA, C_K_VRX, C_K_ZX, C_K_ZDOT, C_K_VRY, C_K_ZY,
+ N_C) = range(41)
+"""Rows of :attr:`Scratch.four`: one value per corner (``C_BIAS*``: the reference filter's
+four biases); ``C_K_*`` the corner observers' outputs (:class:`CornerOutputs`)."""
+D_MED, D_MU, D_SMU, D_EX, D_FZ = 0, 4, 8, 12, 16
+D_VALID = 20
+D_REASON = D_VALID + _N_GROUPS
+D_SIGMA = D_REASON + _N_GROUPS
+N_D = D_SIGMA + N_SIGMA
+"""Offsets in :attr:`Scratch.sample`, one sample's: the median's workspace (4), friction's
+μ, σ_μ, excitation (4 each), F_z (4), the validity flags and reasons, the σ outputs."""
+
+
 class Scratch(NamedTuple):
     """Working arrays of :func:`pipeline_rows`, allocated once (:func:`new_scratch`) and
-    reused by every block: a block of m samples uses the views ``[:m]`` of the (BLOCK, …)
-    arrays, so a block allocates none of its intermediates. Each holds only values of the
-    block in hand (nothing carries from one block to the next); units are those of the
-    quantity its name gives (the stages' own: s, rad/s, N m, m/s², rad, N, m/s)."""
+    reused by every block: a block of m samples uses the views ``[j, :m]`` of these (…, BLOCK,
+    …) arrays, so it allocates none of its intermediates. Few arrays, each a bank of rows
+    named by the ``A_`` … ``D_`` indices: every array in the State tree costs a reference
+    count increment and decrement at each compiled call that takes the tree (a tree of one
+    array per intermediate made :meth:`Pipeline.step` slower than allocating them). Each holds
+    only values of the block in hand; units are those of the quantity the row's name gives
+    (the stages' own: s, rad/s, N m, m/s², rad, N, m/s)."""
 
-    # (BLOCK,): per sample
-    t: np.ndarray
-    ax: np.ndarray
-    ay: np.ndarray
-    az: np.ndarray
-    r: np.ndarray
-    p_rate: np.ndarray
-    q_rate: np.ndarray
-    chan: np.ndarray  # a column of x made contiguous for one kernel call
-    v_w: np.ndarray
-    roll: np.ndarray
-    pitch: np.ndarray
-    roll_acc: np.ndarray
-    pitch_acc: np.ndarray
-    fy_sd: np.ndarray
-    fxa: np.ndarray
-    drag: np.ndarray
-    speed: np.ndarray
-    c_y: np.ndarray
-    scale: np.ndarray
-    latency: np.ndarray
-    gnss: np.ndarray
-    vx_cg: np.ndarray
-    vy_cg: np.ndarray
-    delta_front: np.ndarray
-    yaw_acc: np.ndarray
-    axc: np.ndarray
-    ayc: np.ndarray
-    vg: np.ndarray
-    vxr: np.ndarray
-    vyr: np.ndarray
-    vx_f: np.ndarray
-    n_high: np.ndarray  # int64
-    # (BLOCK, 2): CG (v_x, v_y), the axle pair, the extra speed measurements
-    axle: np.ndarray
-    extra: np.ndarray
-    extra_var: np.ndarray
-    v_ref: np.ndarray
-    sig_ref: np.ndarray
-    v: np.ndarray
-    sig: np.ndarray
-    v_fused: np.ndarray
-    sig_fused: np.ndarray
-    # (BLOCK, 4): per corner
-    omega: np.ndarray
-    omega_v: np.ndarray
-    torque: np.ndarray
-    delta: np.ndarray
-    fx: np.ndarray
-    sig_fx: np.ndarray
-    fy: np.ndarray
-    sig_fy: np.ndarray
-    bias_ref: np.ndarray  # the reference filter's biases (4 per sample, not per corner)
-    bias: np.ndarray
-    bias_fused: np.ndarray
-    trust: np.ndarray
-    conf: np.ndarray
-    vxt: np.ndarray
-    vyt: np.ndarray
-    sr: np.ndarray
-    sa: np.ndarray
-    f_inertia: np.ndarray
-    zero4: np.ndarray
-    nan4: np.ndarray
-    omega_dot: np.ndarray
-    a_xt: np.ndarray
-    a_yt: np.ndarray
-    vxt_g: np.ndarray
-    vyt_in: np.ndarray
-    vxt_r: np.ndarray
-    vyt_r: np.ndarray
-    slip: np.ndarray
-    vx_b: np.ndarray
-    vy_b: np.ndarray
-    phi: np.ndarray
-    fw: np.ndarray
-    hint: np.ndarray  # bool
-    corner: CornerOutputs
-    # one sample's: the median's workspace, friction, validity and uncertainty outputs
-    med: np.ndarray
-    mu: np.ndarray
-    smu: np.ndarray
-    ex: np.ndarray
-    fz_i: np.ndarray
-    valid: np.ndarray
-    reason: np.ndarray
-    sigma: np.ndarray
+    one: np.ndarray  # (N_A, BLOCK)
+    two: np.ndarray  # (N_B, BLOCK, 2)
+    four: np.ndarray  # (N_C, BLOCK, 4)
+    flags: np.ndarray  # (2, BLOCK, 4) bool: the observers' hint (False) and high-slip flags
+    n_high: np.ndarray  # (BLOCK,) int64: corners in high slip
+    sample: np.ndarray  # (N_D,)
 
 
 def new_scratch() -> Scratch:
     """A :class:`Scratch` for blocks of up to :data:`BLOCK` samples (its values unset)."""
-    fields = Scratch._fields
-    wide = {name: 2 for name in fields[fields.index("axle"):fields.index("omega")]}
-    wide |= {name: 4 for name in fields[fields.index("omega"):fields.index("hint")]}
-    arrays = {name: np.empty((BLOCK, wide[name]) if name in wide else BLOCK)
-              for name in fields[:fields.index("hint")]}
-    arrays["n_high"] = np.zeros(BLOCK, dtype=np.int64)
-    corner = CornerOutputs(*(np.empty((BLOCK, 4), dtype=np.bool_ if name == "high" else
-                                      np.float64) for name in CornerOutputs._fields))
-    return Scratch(**arrays, hint=np.zeros((BLOCK, 4), dtype=np.bool_), corner=corner,
-                   med=np.empty(4), mu=np.empty(4), smu=np.empty(4), ex=np.empty(4),
-                   fz_i=np.empty(4), valid=np.empty(_N_GROUPS), reason=np.empty(_N_GROUPS),
-                   sigma=np.empty(N_SIGMA))
+    return Scratch(np.empty((N_A, BLOCK)), np.empty((N_B, BLOCK, 2)), np.empty((N_C, BLOCK, 4)),
+                   np.zeros((2, BLOCK, 4), dtype=np.bool_), np.zeros(BLOCK, dtype=np.int64),
+                   np.empty(N_D))
 
 
 class State(NamedTuple):
@@ -509,14 +446,14 @@ def _block(P: Params, S: State, x: np.ndarray, Y: np.ndarray, k0: int) -> None:
     vs = S.velocity
     sc = S.scratch
     m = x.shape[0]
-    t = sc.t[:m]
-    omega = sc.omega[:m]
-    torque = sc.torque[:m]
-    ay = sc.ay[:m]
-    r = sc.r[:m]
-    p_rate = sc.p_rate[:m]
-    q_rate = sc.q_rate[:m]
-    delta = sc.delta[:m]
+    t = sc.one[A_T, :m]
+    omega = sc.four[C_OMEGA, :m]
+    torque = sc.four[C_TORQUE, :m]
+    ay = sc.one[A_AY, :m]
+    r = sc.one[A_R, :m]
+    p_rate = sc.one[A_P_RATE, :m]
+    q_rate = sc.one[A_Q_RATE, :m]
+    delta = sc.four[C_DELTA, :m]
     for i in range(m):
         t[i] = x[i, X_T]
         ay[i] = x[i, X_AY]
@@ -534,8 +471,8 @@ def _block(P: Params, S: State, x: np.ndarray, Y: np.ndarray, k0: int) -> None:
     att = fp.attitude
     sensors = P.sensors
     # --- force stage (ForceEstimator.advance) ---
-    ax = sc.ax[:m]
-    chan = sc.chan[:m]
+    ax = sc.one[A_AX, :m]
+    chan = sc.one[A_CHAN, :m]
     if sensors.ax:
         ax[:] = x[:, X_AX]
     elif sensors.omega:  # from the wheel speeds (ForceEstimator._speed_inputs)
@@ -549,7 +486,7 @@ def _block(P: Params, S: State, x: np.ndarray, Y: np.ndarray, k0: int) -> None:
             chan[:] = x[:, X_GNSS]
             speed_derivative(t, chan, AX_TAU_SPARSE[0], AX_TAU_SPARSE[1], fs.ax_state, ax)
     if not sensors.omega:  # the wheels roll at the speed
-        v_w = sc.v_w[:m]
+        v_w = sc.one[A_V_W, :m]
         if sensors.vehicle_speed:
             v_w[:] = x[:, X_VSPEED]
         else:
@@ -559,23 +496,23 @@ def _block(P: Params, S: State, x: np.ndarray, Y: np.ndarray, k0: int) -> None:
             w = v_w[i] / radius
             for c in range(4):
                 omega[i, c] = w
-    roll = sc.roll[:m]
-    pitch = sc.pitch[:m]
-    roll_acc = sc.roll_acc[:m]
-    pitch_acc = sc.pitch_acc[:m]
-    fy_sd = sc.fy_sd[:m]
+    roll = sc.one[A_ROLL, :m]
+    pitch = sc.one[A_PITCH, :m]
+    roll_acc = sc.one[A_ROLL_ACC, :m]
+    pitch_acc = sc.one[A_PITCH_ACC, :m]
+    fy_sd = sc.one[A_FY_SD, :m]
     attitude_kernel(t, ax, ay, p_rate, q_rate, r, omega, att, fs.attitude, roll, pitch,
                     roll_acc, pitch_acc, fy_sd)
     # the attitude's gravity as the accelerometers read it (none in an INS's output)
     g_roll, g_pitch = att.gravity * roll, att.gravity * pitch
     if sensors.az:
-        az = sc.az[:m]
+        az = sc.one[A_AZ, :m]
         az[:] = x[:, X_AZ]
     else:
         az = level_road_az(ax, ay, g_roll, g_pitch)
     fxa, fya, fza = road_specific_force(ax, ay, az, g_roll, g_pitch)
     if not sensors.ax:  # a speed's derivative is already the road-plane acceleration
-        fxa = sc.fxa[:m]
+        fxa = sc.one[A_FXA, :m]
         fxa[:] = ax
     lxa, lya, lza, noise = load_specific_force(fp.load_filter, fp.load_filter_on, fs.load_filter,
                                                t, fxa, fya, fza, r)
@@ -584,13 +521,13 @@ def _block(P: Params, S: State, x: np.ndarray, Y: np.ndarray, k0: int) -> None:
     if not sensors.torque:
         torque = _chassis_torques(fp, fs, sc, t, omega, fxa, fya, delta, fz)
     teff = torque_less_rolling_resistance(torque, omega, fz, fp.rolling_moment)
-    fx = sc.fx[:m]
-    sig_fx = sc.sig_fx[:m]
+    fx = sc.four[C_FX, :m]
+    sig_fx = sc.four[C_SIG_FX, :m]
     sig_fx[:] = np.nan
     longitudinal_rows(fp.lon, fs.lon, t, omega, teff, fx, sig_fx)
-    drag = sc.drag[:m]
-    speed = sc.speed[:m]
-    med = sc.med
+    drag = sc.one[A_DRAG, :m]
+    speed = sc.one[A_SPEED, :m]
+    med = sc.sample[D_MED:D_MED + 4]
     for i in range(m):
         w_mean = 0.25 * (omega[i, 0] + omega[i, 1] + omega[i, 2] + omega[i, 3])
         drag[i] = fp.drag_coef * (radius * w_mean) ** 2
@@ -598,8 +535,8 @@ def _block(P: Params, S: State, x: np.ndarray, Y: np.ndarray, k0: int) -> None:
             med[c] = omega[i, c]
         speed[i] = radius * _median_inner(med, 4)  # np.median's own, on a reused workspace
     weights = split_weights(fz, omega, torque, r, radius, yw, fp.load_exponent, fp.slip_scale)
-    fy = sc.fy[:m]
-    sig_fy = sc.sig_fy[:m]
+    fy = sc.four[C_FY, :m]
+    sig_fy = sc.four[C_SIG_FY, :m]
     lateral_kernel(fp.lateral, fs.lateral, t, fx, delta, weights, fxa, fya, r, noise, drag, fz,
                    speed, fy, sig_fy)
     if not sensors.omega:  # per-corner F_x needs the wheels' own speeds
@@ -608,23 +545,23 @@ def _block(P: Params, S: State, x: np.ndarray, Y: np.ndarray, k0: int) -> None:
     # --- velocity stage ---
     mu_x = normalised(fx, fz)
     mu_y = normalised(fy, fz)
-    axle = sc.axle[:m]
-    c_y = sc.c_y[:m]
+    axle = sc.two[B_AXLE, :m]
+    c_y = sc.one[A_C_Y, :m]
     _stiffness_rows(vp.stiffness, vs.stiffness, 0, m, t, omega, r, delta, fy, fz, axle, c_y)
     # The wheel speeds at the effective radius that the GNSS speed shows, and the fixes
     # brought forward by the receiver's latency (scale 1 and no fix without gnss_speed).
-    scale = sc.scale[:m]
-    latency = sc.latency[:m]
-    gnss = sc.gnss[:m]
-    extra = sc.extra[:m]
-    extra_var = sc.extra_var[:m]
+    scale = sc.one[A_SCALE, :m]
+    latency = sc.one[A_LATENCY, :m]
+    gnss = sc.one[A_GNSS, :m]
+    extra = sc.two[B_EXTRA, :m]
+    extra_var = sc.two[B_EXTRA_VAR, :m]
     omega_v = omega
     if sensors.omega:
         chan[:] = x[:, X_GNSS]
         gnss_calibration(vp.radius, vs.radius, t, omega, chan, scale, latency, gnss)
         for i in range(m):
             if scale[i] != 1.0:
-                omega_v = sc.omega_v[:m]
+                omega_v = sc.four[C_OMEGA_V, :m]
                 for k in range(m):
                     for c in range(4):
                         omega_v[k, c] = omega[k, c] * scale[k]
@@ -633,7 +570,7 @@ def _block(P: Params, S: State, x: np.ndarray, Y: np.ndarray, k0: int) -> None:
         scale[:] = np.nan
         latency[:] = np.nan
         gnss[:] = x[:, X_GNSS]
-        omega_v = sc.omega_v[:m]
+        omega_v = sc.four[C_OMEGA_V, :m]
         omega_v[:] = np.nan
     # A fix's error is white at the receiver's rate: undo the τ_wheel/T_s inflation the
     # filter gives every extra CG-speed measurement, so its weight does not depend on the
@@ -652,19 +589,19 @@ def _block(P: Params, S: State, x: np.ndarray, Y: np.ndarray, k0: int) -> None:
         else:
             extra[i, 1] = extra_var[i, 1] = np.nan
     vs.t_gnss[0] = t_prev
-    v_ref = sc.v_ref[:m]
-    sig_ref = sc.sig_ref[:m]
-    bias_ref = sc.bias_ref[:m]
-    trust = sc.trust[:m]
+    v_ref = sc.two[B_V_REF, :m]
+    sig_ref = sc.two[B_SIG_REF, :m]
+    bias_ref = sc.four[C_BIAS_REF, :m]
+    trust = sc.four[C_TRUST, :m]
     method = vp.method
-    conf = sc.conf[:m]
+    conf = sc.four[C_CONF, :m]
     conf[:] = np.nan  # the opinion fusion's confidences
     if method == KINEMATIC:
-        v = sc.v[:m]
+        v = sc.two[B_V, :m]
         kinematic_kernel(t, omega_v, fxa, fya, r, radius, vs.kinematic, v)
-        sig = sc.sig[:m]
+        sig = sc.two[B_SIG, :m]
         sig[:] = np.nan
-        bias = sc.bias[:m]
+        bias = sc.four[C_BIAS, :m]
         bias[:] = np.nan
     else:
         prev = vs.prev
@@ -688,29 +625,29 @@ def _block(P: Params, S: State, x: np.ndarray, Y: np.ndarray, k0: int) -> None:
                                       mu_x, axle, extra, extra_var, v_ref, sig_ref, bias_ref,
                                       same, vx_f, n_high)
             else:  # a corner observer: CG v_x by the fusion, v_y from the reference filter
-                v = sc.v[:m]
+                v = sc.two[B_V, :m]
                 for i in range(m):
                     v[i, 0] = vx_f[i]
                     v[i, 1] = v_ref[i, 1]
-                sig = sc.sig[:m]
+                sig = sc.two[B_SIG, :m]
                 sig[:] = np.nan
     # --- the corners' kinematics ---
-    vx_cg = sc.vx_cg[:m]
-    vy_cg = sc.vy_cg[:m]
+    vx_cg = sc.one[A_VX_CG, :m]
+    vy_cg = sc.one[A_VY_CG, :m]
     for i in range(m):
         vx_cg[i] = v[i, 0]
         vy_cg[i] = v[i, 1]
     vx_o, vy_o = transport_kernel(vx_cg, vy_cg, r, xw, yw, 1.0)
-    vxt = sc.vxt[:m]
-    vyt = sc.vyt[:m]
+    vxt = sc.four[C_VXT, :m]
+    vyt = sc.four[C_VYT, :m]
     rotate_kernel(vx_o.reshape(-1), vy_o.reshape(-1), delta.reshape(-1), 1.0, vxt.reshape(-1),
                   vyt.reshape(-1))
-    sr = sc.sr[:m]
+    sr = sc.four[C_SR, :m]
     slip_ratio_kernel(omega_v.reshape(-1), vxt.reshape(-1), radius, 0.1, sr.reshape(-1))
     if not sensors.omega:
         sr[:] = np.nan
         omega_v = omega  # the speed's, as the uncertainty stage reads them
-    sa = sc.sa[:m]
+    sa = sc.four[C_SA, :m]
     slip_angle_kernel(vxt.reshape(-1), vyt.reshape(-1), 0.5, sa.reshape(-1))
     col = P.col
     _put(Y, col, 0, t, k0)
@@ -741,16 +678,16 @@ def _chassis_torques(fp: ForceParams, fs: ForceState, sc: Scratch, t: np.ndarray
     −I_w ω̇̂/R, so the main run subtracts the same ω̇̂ and a wheel spinning up keeps only its
     share of the tire force)."""
     m = t.shape[0]
-    f_inertia = sc.f_inertia[:m]
-    zero = sc.zero4[:m]
+    f_inertia = sc.four[C_F_INERTIA, :m]
+    zero = sc.four[C_ZERO4, :m]
     zero[:] = 0.0
-    unused = sc.nan4[:m]
+    unused = sc.four[C_NAN4, :m]
     unused[:] = np.nan
     longitudinal_rows(fp.lon, fs.inertia, t, omega, zero, f_inertia, unused)
     ch = fp.chassis
     gain = -ch.radius / ch.wheel_inertia
-    omega_dot = sc.omega_dot[:m]
-    delta_front = sc.delta_front[:m]
+    omega_dot = sc.four[C_OMEGA_DOT, :m]
+    delta_front = sc.one[A_DELTA_FRONT, :m]
     for i in range(m):
         delta_front[i] = (delta[i, 0] + delta[i, 1]) / 2.0
         for c in range(4):
@@ -781,38 +718,41 @@ def _corners_vx(P: Params, S: State, t: np.ndarray, omega: np.ndarray, delta: np
     radius = P.force.radius
     sc = S.scratch
     m = t.shape[0]
-    yaw_acc = sc.yaw_acc[:m]
+    yaw_acc = sc.one[A_YAW_ACC, :m]
     yaw_acceleration_kernel(t, r, vs.prev, yaw_acc)  # prev[:2]: the previous (t, r)
-    axc = sc.axc[:m]
-    ayc = sc.ayc[:m]
+    axc = sc.one[A_AXC, :m]
+    ayc = sc.one[A_AYC, :m]
     for i in range(m):
         axc[i] = fxa[i] - bias_ref[i, 0]
         ayc[i] = fya[i] - bias_ref[i, 1]
     ax_i, ay_i = corner_acc_kernel(axc, ayc, r, yaw_acc, xw, yw)
-    a_xt = sc.a_xt[:m]
-    a_yt = sc.a_yt[:m]
+    a_xt = sc.four[C_A_XT, :m]
+    a_yt = sc.four[C_A_YT, :m]
     rotate_kernel(ax_i.reshape(-1), ay_i.reshape(-1), delta.reshape(-1), 1.0, a_xt.reshape(-1),
                   a_yt.reshape(-1))
-    vg = sc.vg[:m]
+    vg = sc.one[A_VG, :m]
     for i in range(m):
         vg[i] = radius * (0.25 * (omega[i, 0] + omega[i, 1] + omega[i, 2] + omega[i, 3]))
-    vyr = sc.vyr[:m]
+    vyr = sc.one[A_VYR, :m]
     vyr[:] = v_ref[:, 1]
     vx_i, vy_i = transport_kernel(vg, vyr, r, xw, yw, 1.0)
-    vxt_g = sc.vxt_g[:m]
-    vyt_in = sc.vyt_in[:m]
+    vxt_g = sc.four[C_VXT_G, :m]
+    vyt_in = sc.four[C_VYT_IN, :m]
     rotate_kernel(vx_i.reshape(-1), vy_i.reshape(-1), delta.reshape(-1), 1.0,
                   vxt_g.reshape(-1), vyt_in.reshape(-1))
-    vxr = sc.vxr[:m]
+    vxr = sc.one[A_VXR, :m]
     vxr[:] = v_ref[:, 0]
     vxr_i, vyr_i = transport_kernel(vxr, vyr, r, xw, yw, 1.0)
-    vxt_r = sc.vxt_r[:m]
-    vyt_r = sc.vyt_r[:m]
+    vxt_r = sc.four[C_VXT_R, :m]
+    vyt_r = sc.four[C_VYT_R, :m]
     rotate_kernel(vxr_i.reshape(-1), vyr_i.reshape(-1), delta.reshape(-1), 1.0,
                   vxt_r.reshape(-1), vyt_r.reshape(-1))
-    k = _corner_outputs_rows(sc.corner, 0, m)
+    f4 = sc.four
+    k = CornerOutputs(f4[C_K_VXT, :m], f4[C_K_VYT, :m], f4[C_K_SIGMA, :m], sc.flags[1, :m],
+                      f4[C_K_VRX, :m], f4[C_K_ZX, :m], f4[C_K_ZDOT, :m], f4[C_K_VRY, :m],
+                      f4[C_K_ZY, :m])
     k.vyt[:] = 0.0  # what an observer does not estimate is left as given: v_yt 0
-    hint = sc.hint[:m]
+    hint = sc.flags[0, :m]
     hint[:] = False
     inp = CornerInputs(t, omega, mu_x, mu_y, a_xt, a_yt, delta, r, hint, vyt_in)
     seed = -1  # the row after which the observers take the reference's velocity (SEED_AT)
@@ -837,18 +777,18 @@ def _corners_vx(P: Params, S: State, t: np.ndarray, omega: np.ndarray, delta: np
             for c in range(4):
                 if np.isnan(k_vyt[i, c]):
                     k_vyt[i, c] = 0.0
-    slip = sc.slip[:m]
+    slip = sc.four[C_SLIP, :m]
     slip_ratio_kernel(omega.reshape(-1), vxt_r.reshape(-1), radius, 0.1, slip.reshape(-1))
-    vx_b = sc.vx_b[:m]
-    vy_b = sc.vy_b[:m]
+    vx_b = sc.four[C_VX_B, :m]
+    vy_b = sc.four[C_VY_B, :m]
     rotate_kernel(k_vxt.reshape(-1), k_vyt.reshape(-1), delta.reshape(-1), -1.0,
                   vx_b.reshape(-1), vy_b.reshape(-1))
-    phi = sc.phi[:m]
+    phi = sc.four[C_PHI, :m]
     for i in range(m):
         for c in range(4):
             phi[i, c] = vx_b[i, c] + r[i] * yw[c]
-    vx_f = sc.vx_f[:m]
-    fw = sc.fw[:m]
+    vx_f = sc.one[A_VX_F, :m]
+    fw = sc.four[C_FW, :m]
     if vp.fusion == ADAPTIVE:
         adaptive_axle_kernel(phi, slip, vp.w_s, vp.w_range, vp.rho, vp.threshold, vx_f, fw)
     elif vp.fusion == OPINION:
@@ -902,10 +842,10 @@ def _fused(P: Params, S: State, t: np.ndarray, omega: np.ndarray, torque: np.nda
         return v_ref, sig_ref, bias_ref
     vs.prev[2] = 0.0
     sc = S.scratch
-    v = sc.v_fused[:m]
-    sig = sc.sig_fused[:m]
-    bias = sc.bias_fused[:m]
-    trust = sc.trust[:m]  # the reference filter's, not read: written over
+    v = sc.two[B_V_FUSED, :m]
+    sig = sc.two[B_SIG_FUSED, :m]
+    bias = sc.four[C_BIAS_FUSED, :m]
+    trust = sc.four[C_TRUST, :m]  # the reference filter's, not read: written over
     _reference_rows(vp.reference, vs.fused, 0, m, t, omega, torque, mu_x, axle, fxa, fya,
                     fy_sd, r, delta, extra, extra_var, v, sig, bias, trust)
     return v, sig, bias
@@ -946,8 +886,10 @@ def _post(p: PostParams, st: PostState, sc: Scratch, x: np.ndarray, t: np.ndarra
     m = t.shape[0]
     if np.isnan(st.t_start[0]):
         st.t_start[0] = t[0]
-    mu, smu, ex, fz_i = sc.mu, sc.smu, sc.ex, sc.fz_i
-    valid, reason, sigma = sc.valid, sc.reason, sc.sigma
+    d = sc.sample
+    mu, smu, ex, fz_i = d[D_MU:D_MU + 4], d[D_SMU:D_SMU + 4], d[D_EX:D_EX + 4], d[D_FZ:D_FZ + 4]
+    valid, reason = d[D_VALID:D_VALID + _N_GROUPS], d[D_REASON:D_REASON + _N_GROUPS]
+    sigma = d[D_SIGMA:D_SIGMA + N_SIGMA]
     for i in range(m):
         k = k0 + i
         vx = v[i, 0]
