@@ -618,11 +618,12 @@ def _block(P: Params, S: State, x: np.ndarray, Y: np.ndarray, k0: int) -> None:
         sig = sig_ref
         bias = bias_ref
         if method != REFERENCE and sensors.omega:  # without them "fused" is the reference
-            vx_f, n_high = _corners_vx(P, S, t, omega_v, delta, r, fxa, fya, mu_x, mu_y, v_ref,
-                                       bias_ref, conf)
+            vx_f, n_high = _corners_vx(vp, fp, vs.corner, prev, vs.seeded, S.post.t_start,
+                                       SEED_AT * P.post.validity.converge_s, sc, t, omega_v,
+                                       delta, r, fxa, fya, mu_x, mu_y, v_ref, bias_ref, conf)
             if method == FUSED:
-                v, sig, bias = _fused(P, S, t, omega_v, torque, delta, r, fxa, fya, fy_sd,
-                                      mu_x, axle, extra, extra_var, v_ref, sig_ref, bias_ref,
+                v, sig, bias = _fused(vp.reference, vs.fused, prev, sc, t, omega_v, torque,
+                                      delta, r, fxa, fya, fy_sd, mu_x, axle, extra, extra_var,
                                       same, vx_f, n_high)
             else:  # a corner observer: CG v_x by the fusion, v_y from the reference filter
                 v = sc.two[B_V, :m]
@@ -696,9 +697,11 @@ def _chassis_torques(fp: ForceParams, fs: ForceState, sc: Scratch, t: np.ndarray
 
 
 @njit(**_JIT)
-def _corners_vx(P: Params, S: State, t: np.ndarray, omega: np.ndarray, delta: np.ndarray,
-                r: np.ndarray, fxa: np.ndarray, fya: np.ndarray, mu_x: np.ndarray,
-                mu_y: np.ndarray, v_ref: np.ndarray, bias_ref: np.ndarray,
+def _corners_vx(vp: VelocityParams, fp: ForceParams, cs: CornerState, prev: np.ndarray,
+                seeded: np.ndarray, t_start: np.ndarray, seed_s: float, sc: Scratch,
+                t: np.ndarray, omega: np.ndarray, delta: np.ndarray, r: np.ndarray,
+                fxa: np.ndarray, fya: np.ndarray, mu_x: np.ndarray, mu_y: np.ndarray,
+                v_ref: np.ndarray, bias_ref: np.ndarray,
                 conf: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """The corner observers of a block (001 text after eq. (21); Pipeline._corners) and their
     fusion to the CG (003 Alg. 2, 001 eq. (33)–(35)). Returns the
@@ -709,17 +712,18 @@ def _corners_vx(P: Params, S: State, t: np.ndarray, omega: np.ndarray, delta: np
     biases b_x, b_y are removed from the accelerations the observers integrate. The slip that
     sets the fusion weights is taken against the reference filter's velocity mapped to each
     corner, not against the corner's own v̂_xt (a corner observer that has drifted towards
-    R·ω would report a small slip and keep its weight)."""
-    vp = P.velocity
-    vs = S.velocity
+    R·ω would report a small slip and keep its weight).
+
+    It takes the subtrees it reads, not the whole trees (each array of an argument is
+    reference-counted at every call): the velocity and force parameters, the observers'
+    state, ``prev`` = VelocityState.prev, ``seeded`` = VelocityState.seeded, ``t_start`` =
+    PostState.t_start and ``seed_s`` = :data:`SEED_AT` × the validity's ``converge_s``, s."""
     cp = vp.corner
-    cs = vs.corner
-    xw, yw = P.force.xw, P.force.yw
-    radius = P.force.radius
-    sc = S.scratch
+    xw, yw = fp.xw, fp.yw
+    radius = fp.radius
     m = t.shape[0]
     yaw_acc = sc.one[A_YAW_ACC, :m]
-    yaw_acceleration_kernel(t, r, vs.prev, yaw_acc)  # prev[:2]: the previous (t, r)
+    yaw_acceleration_kernel(t, r, prev, yaw_acc)  # prev[:2]: the previous (t, r)
     axc = sc.one[A_AXC, :m]
     ayc = sc.one[A_AYC, :m]
     for i in range(m):
@@ -756,10 +760,10 @@ def _corners_vx(P: Params, S: State, t: np.ndarray, omega: np.ndarray, delta: np
     hint[:] = False
     inp = CornerInputs(t, omega, mu_x, mu_y, a_xt, a_yt, delta, r, hint, vyt_in)
     seed = -1  # the row after which the observers take the reference's velocity (SEED_AT)
-    if vs.seeded[0] == 0.0:
-        t0 = S.post.t_start[0] if not np.isnan(S.post.t_start[0]) else t[0]
+    if seeded[0] == 0.0:
+        t0 = t_start[0] if not np.isnan(t_start[0]) else t[0]
         for i in range(m):
-            if t[i] - t0 >= SEED_AT * P.post.validity.converge_s:
+            if t[i] - t0 >= seed_s:
                 seed = i
                 break
     if seed < 0:
@@ -768,7 +772,7 @@ def _corners_vx(P: Params, S: State, t: np.ndarray, omega: np.ndarray, delta: np
         corner_rows(cp, cs, _corner_inputs_rows(inp, 0, seed + 1),
                     _corner_outputs_rows(k, 0, seed + 1))
         seed_corners(cp, cs, omega[seed], vxt_r[seed])
-        vs.seeded[0] = 1.0
+        seeded[0] = 1.0
         corner_rows(cp, cs, _corner_inputs_rows(inp, seed + 1, m),
                     _corner_outputs_rows(k, seed + 1, m))
     k_vxt, k_vyt, k_high = k.vxt, k.vyt, k.high
@@ -818,36 +822,35 @@ def _corner_outputs_rows(a: CornerOutputs, i: int, j: int) -> CornerOutputs:
 
 
 @njit(**_JIT)
-def _fused(P: Params, S: State, t: np.ndarray, omega: np.ndarray, torque: np.ndarray,
-           delta: np.ndarray, r: np.ndarray, fxa: np.ndarray, fya: np.ndarray,
-           fy_sd: np.ndarray, mu_x: np.ndarray, axle: np.ndarray, extra: np.ndarray,
-           extra_var: np.ndarray, v_ref: np.ndarray, sig_ref: np.ndarray, bias_ref: np.ndarray,
+def _fused(rp: ReferenceKernelParams, fused: ReferenceState, prev: np.ndarray, sc: Scratch,
+           t: np.ndarray, omega: np.ndarray, torque: np.ndarray, delta: np.ndarray,
+           r: np.ndarray, fxa: np.ndarray, fya: np.ndarray, fy_sd: np.ndarray,
+           mu_x: np.ndarray, axle: np.ndarray, extra: np.ndarray, extra_var: np.ndarray,
            same: bool, vx_f: np.ndarray,
            n_high: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """The fused filter of a block (velocity "fused"): the second reference filter
     that takes the corner observers' fused CG v_x ``vx_f`` (into ``extra[:, 1]``,
     ``extra_var[:, 1]``; column 0 holds the GNSS fixes) while ≥ 3 corners are in high slip
     (``n_high``). Returns its (v, σ, bias), the reference filter's while the fused one has
-    not yet diverged from it."""
-    vp = P.velocity
-    vs = S.velocity
+    not yet diverged from it (the reference filter's are the views B_V_REF, B_SIG_REF,
+    C_BIAS_REF of ``sc``). ``rp`` the reference filter's parameters, ``fused`` the fused
+    filter's state, ``prev`` = VelocityState.prev (its [2] set to 0 once they differ)."""
     m = t.shape[0]
     any_slip = False
     for i in range(m):
         slipping = n_high[i] >= 3
         any_slip = any_slip or slipping
         extra[i, 1] = vx_f[i] if slipping else np.nan
-        extra_var[i, 1] = vp.reference.sigma_corner_slip ** 2 if slipping else np.nan
+        extra_var[i, 1] = rp.sigma_corner_slip ** 2 if slipping else np.nan
     if same and not any_slip:
-        return v_ref, sig_ref, bias_ref
-    vs.prev[2] = 0.0
-    sc = S.scratch
+        return sc.two[B_V_REF, :m], sc.two[B_SIG_REF, :m], sc.four[C_BIAS_REF, :m]
+    prev[2] = 0.0
     v = sc.two[B_V_FUSED, :m]
     sig = sc.two[B_SIG_FUSED, :m]
     bias = sc.four[C_BIAS_FUSED, :m]
     trust = sc.four[C_TRUST, :m]  # the reference filter's, not read: written over
-    _reference_rows(vp.reference, vs.fused, 0, m, t, omega, torque, mu_x, axle, fxa, fya,
-                    fy_sd, r, delta, extra, extra_var, v, sig, bias, trust)
+    _reference_rows(rp, fused, 0, m, t, omega, torque, mu_x, axle, fxa, fya, fy_sd, r, delta,
+                    extra, extra_var, v, sig, bias, trust)
     return v, sig, bias
 
 
