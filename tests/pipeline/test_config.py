@@ -54,6 +54,45 @@ def test_registering_twice_or_a_second_default_is_refused():
     assert "median" not in registry.names("fusion")
 
 
+def test_registry_holds_each_methods_callable_and_params():
+    """``register`` keeps what it decorates: the fusion functions, the force and corner kernels,
+    the stiffness estimator classes, each with its Params class and its code (the order of
+    registration: ``ukf`` 0 … ``naive`` 4, as the compiled pipeline dispatches on them); the
+    corner observers and stiffness estimators are kinds of their own (``PARTS``), not
+    pipeline stages."""
+    from vestim.estimators import fusion
+    from vestim.estimators.force import longitudinal
+    from vestim.estimators.stiffness import AugmentedEKF, NoiseAdaptivePF, StiffnessConfig
+    from vestim.estimators.velocity.lpv_observer import LPVParams, lpv_kernel
+    from vestim.estimators.velocity.lugre_kf import KFParams, lugre_kf_kernel
+
+    force = {m.name: m for m in registry.methods("force")}
+    assert [(n, force[n].code) for n in FORCE_METHODS] == [
+        ("ukf", 0), ("ukf_rw", 1), ("pid", 2), ("uio", 3), ("naive", 4)]
+    assert force["ukf"].impl is longitudinal.ukf_kernel
+    assert force["ukf"].params is longitudinal.UKFParams
+    assert force["naive"].impl is longitudinal.naive_kernel and force["naive"].params is None
+    assert [m.impl for m in registry.methods("fusion")] == [
+        fusion._fixed, fusion._adaptive, fusion._opinion]
+    corner = {m.name: m for m in registry.methods("corner")}
+    assert tuple(corner) == CORNER_OBSERVERS == ("lugre_kf", "lugre_ukf", "lpv")
+    assert (corner["lugre_ukf"].impl, corner["lugre_ukf"].params) == (lugre_kf_kernel, KFParams)
+    assert (corner["lpv"].impl, corner["lpv"].params) == (lpv_kernel, LPVParams)
+    stiffness = registry.methods("stiffness")
+    assert [m.name for m in stiffness] == ["pf", "augpf", "rls", "ekf"]
+    assert (stiffness[0].impl, stiffness[-1].impl) == (NoiseAdaptivePF, AugmentedEKF)
+    assert {m.params for m in stiffness} == {StiffnessConfig}
+    assert registry.PARTS == ("corner", "stiffness")
+    assert not set(registry.PARTS) & set(registry.STAGES)
+    decorate = registry.register("fusion", "median_test", "a test method")
+    try:
+        assert decorate(len) is len and registry.lookup("fusion", "median_test").impl is len
+        with pytest.raises(ValueError, match="already has its callable"):
+            decorate(abs)  # a second callable for the same method
+    finally:
+        del registry._REGISTRY["fusion"]["median_test"]
+
+
 def test_cli_methods_lists_every_registered_method():
     res = CliRunner().invoke(app, ["methods"])
     assert res.exit_code == 0, res.output

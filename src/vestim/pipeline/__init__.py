@@ -78,7 +78,7 @@ from vestim.estimators.uncertainty import (
     uncertainty_params,
 )
 from vestim.estimators.validity import VY_UNVERIFIED, new_consistency_state, validity_params
-from vestim.estimators.velocity.corner import CornerVelocityEstimator
+from vestim.estimators.velocity.corner import LPV, CornerVelocityEstimator
 from vestim.estimators.velocity.kinematic import KinematicIntegrator
 from vestim.estimators.velocity.lpv_observer import LPVParams
 from vestim.estimators.velocity.lugre_kf import KFParams
@@ -156,7 +156,7 @@ class Pipeline:
         method = self.config.velocity
         corner_method = registry.lookup("velocity", method).corner
         params: KFParams | LPVParams | None = self.config.corner
-        if corner_method == "lpv":
+        if corner_method is not None and registry.lookup("corner", corner_method).code == LPV:
             params = _lpv_params_from_gains(self.config.gains) if self.config.gains else None
         self.corner = (CornerVelocityEstimator(vehicle, corner_method, params)
                        if corner_method is not None else None)

@@ -38,25 +38,6 @@ from vestim.params import check_ranges, pack
 
 _JIT: dict[str, Any] = {"cache": True, "error_model": "numpy"}
 
-register("force", "ukf", "UKF on the wheel dynamics with the torque filtered as a state and "
-         "covariance switching on high wheel acceleration", default=True,
-         cite="000 eq. (10)–(12), 004 eq. (1)–(5), Sec. II-A", tables=("force_params",),
-         outputs=("sigma_fx",))
-register("force", "ukf_rw", "the papers' UKF exactly: x = [ω, F_x], F_x a random walk",
-         cite="000 eq. (10)–(12), 004 eq. (1)–(5)", tables=("force_params",),
-         outputs=("sigma_fx",))
-register("force", "pid", "PID observer of the wheel dynamics", cite="001 eq. (2)–(5)",
-         tables=("force_params",))
-register("force", "uio", "unknown-input observer of the wheel dynamics", cite="000 eq. (2)–(3)",
-         tables=("force_params",))
-register("force", "naive", "finite-difference floor F_x = (T − I_w Δω/Δt)/R_e")
-_REGISTERED = registered("force")
-METHODS: tuple[str, ...] = tuple(_REGISTERED)
-"""The methods' names, in the registry's order."""
-UKF, UKF_RW, PID, UIO, NAIVE = (_REGISTERED[name].code
-                                for name in ("ukf", "ukf_rw", "pid", "uio", "naive"))
-"""The methods' registry codes (what :func:`longitudinal_rows` dispatches on)."""
-
 
 # ----------------------------------------------------------------------------- UKF
 # state per corner: [ω, F]; scratch per call
@@ -715,6 +696,27 @@ def naive_kernel(t: np.ndarray, omega: np.ndarray, torque: np.ndarray, iw: float
             t_prev[c] = t[k]
             tq_prev[c] = torque[k, c]
             w_prev[c] = omega[k, c]
+
+# The methods, registered with their kernels in the order that gives their codes.
+register("force", "ukf", "UKF on the wheel dynamics with the torque filtered as a state and "
+         "covariance switching on high wheel acceleration", default=True,
+         cite="000 eq. (10)–(12), 004 eq. (1)–(5), Sec. II-A", tables=("force_params",),
+         outputs=("sigma_fx",), params=UKFParams)(ukf_kernel)
+register("force", "ukf_rw", "the papers' UKF exactly: x = [ω, F_x], F_x a random walk",
+         cite="000 eq. (10)–(12), 004 eq. (1)–(5)", tables=("force_params",),
+         outputs=("sigma_fx",), params=UKFParams)(ukf_rw_kernel)
+register("force", "pid", "PID observer of the wheel dynamics", cite="001 eq. (2)–(5)",
+         tables=("force_params",), params=PIDParams)(pid_kernel)
+register("force", "uio", "unknown-input observer of the wheel dynamics", cite="000 eq. (2)–(3)",
+         tables=("force_params",), params=UIOParams)(uio_kernel)
+register("force", "naive", "finite-difference floor F_x = (T − I_w Δω/Δt)/R_e")(naive_kernel)
+_REGISTERED = registered("force")
+METHODS: tuple[str, ...] = tuple(_REGISTERED)
+"""The methods' names, in the registry's order."""
+UKF, UKF_RW, PID, UIO, NAIVE = (_REGISTERED[name].code
+                                for name in ("ukf", "ukf_rw", "pid", "uio", "naive"))
+"""The methods' registry codes (what :func:`longitudinal_rows` dispatches on)."""
+
 
 class LongitudinalParams(NamedTuple):
     """Every longitudinal method's parameters, whole (SI), and which one runs: ``method`` its

@@ -38,18 +38,7 @@ from vestim.estimators.fusion.opinion import (
     solve_confidences,
     steady_state_opinions,
 )
-from vestim.estimators.registry import register
-
-FUSION_METHODS: tuple[str, str, str] = ("axle", "adaptive", "opinion")
-"""Names accepted by :func:`fuse`."""
-
-register("fusion", "axle", "fixed axle weights η1 = η2 = 0.5", default=True,
-         cite="000 Sec. III, 004 Sec. III", tables=("fusion_params",), needs_wheel_speeds=False)
-register("fusion", "adaptive", "slip-adaptive axle weights", cite="001 eq. (34)–(35)",
-         tables=("fusion_params",), needs_wheel_speeds=False)
-register("fusion", "opinion", "opinion-dynamics consensus with per-sample confidence "
-         "optimisation (writes confidence_*)", cite="003 eq. (5)–(13), Alg. 2",
-         tables=("fusion_params",), needs_wheel_speeds=False, outputs=("confidence",))
+from vestim.estimators.registry import register, registered
 
 
 @dataclass(frozen=True)
@@ -108,6 +97,43 @@ class FusionParams:
                              f"got {type(self.adaptive).__name__}")
 
 
+@register("fusion", "axle", "fixed axle weights η1 = η2 = 0.5", default=True,
+          cite="000 Sec. III, 004 Sec. III", tables=("fusion_params",), needs_wheel_speeds=False,
+          params=FusionParams)
+def _fixed(phi: np.ndarray, slip: np.ndarray, params: FusionParams, vx: np.ndarray,
+           weights: np.ndarray) -> None:
+    """Fixed axle weights η1 = ``params.eta_front``, η2 = 1 − η1 (``slip`` unused)."""
+    fixed_axle_kernel(phi, float(params.eta_front), vx, weights)
+
+
+@register("fusion", "adaptive", "slip-adaptive axle weights", cite="001 eq. (34)–(35)",
+          tables=("fusion_params",), needs_wheel_speeds=False, params=FusionParams)
+def _adaptive(phi: np.ndarray, slip: np.ndarray, params: FusionParams, vx: np.ndarray,
+              weights: np.ndarray) -> None:
+    """Slip-adaptive axle weights of ``params.adaptive``."""
+    a = params.adaptive
+    adaptive_axle_kernel(phi, slip, float(a.w_s), float(a.w_range), float(a.rho),
+                         float(a.threshold), vx, weights)
+
+
+@register("fusion", "opinion", "opinion-dynamics consensus with per-sample confidence "
+          "optimisation (writes confidence_*)", cite="003 eq. (5)–(13), Alg. 2",
+          tables=("fusion_params",), needs_wheel_speeds=False, outputs=("confidence",),
+          params=FusionParams)
+def _opinion(phi: np.ndarray, slip: np.ndarray, params: FusionParams, vx: np.ndarray,
+             weights: np.ndarray) -> None:
+    """Opinion-dynamics consensus with the confidences of ``params``."""
+    conf = np.empty((phi.shape[0], 4))
+    opinion_kernel(phi, slip, float(params.k1), float(params.k2), float(params.w_floor),
+                   float(params.band), float(params.gamma), vx, weights, conf)
+
+
+FUSION_METHODS: tuple[str, ...] = tuple(registered("fusion"))
+"""Names accepted by :func:`fuse`, in the registry's order (each a function of the signature
+``(phi, slip, params, vx, weights)`` filling ``vx`` (n,) and ``weights`` (n, 4) in place,
+registered above)."""
+
+
 def _check_inputs(vx_corner_cg: np.ndarray, slip_ratio: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     phi = np.ascontiguousarray(vx_corner_cg, dtype=float)
     slip = np.ascontiguousarray(slip_ratio, dtype=float)
@@ -147,16 +173,9 @@ def fuse(method: str, vx_corner_cg: np.ndarray, slip_ratio: np.ndarray,
     n = phi.shape[0]
     vx = np.empty(n)
     weights = np.empty((n, 4))
-    if method == "axle":
-        fixed_axle_kernel(phi, float(params.eta_front), vx, weights)
-    elif method == "adaptive":
-        a = params.adaptive
-        adaptive_axle_kernel(phi, slip, float(a.w_s), float(a.w_range), float(a.rho), float(a.threshold),
-                             vx, weights)
-    else:
-        conf = np.empty((n, 4))
-        opinion_kernel(phi, slip, float(params.k1), float(params.k2), float(params.w_floor),
-                       float(params.band), float(params.gamma), vx, weights, conf)
+    fill = registered("fusion")[method].impl
+    assert fill is not None  # every fusion method registers its function above
+    fill(phi, slip, params, vx, weights)
     return vx, weights
 
 

@@ -15,6 +15,7 @@ from dataclasses import dataclass
 import numpy as np
 import pandas as pd
 
+from vestim.estimators.registry import register, registered
 from vestim.estimators.stiffness.augpf import augpf_kernel
 from vestim.estimators.stiffness.baselines import ekf_kernel, rls_kf_kernel
 from vestim.estimators.stiffness.config import StiffnessConfig, StiffnessPrior
@@ -43,9 +44,6 @@ from vestim.estimators.stiffness.pf import (
     pack_particles,
 )
 from vestim.io.vehicle import Vehicle
-
-METHODS: tuple[str, ...] = ("pf", "augpf", "rls", "ekf")
-"""Names accepted by :func:`estimate_stiffness`: Algorithm 1, AUGPF, RLS + KF, EKF."""
 
 
 @dataclass(frozen=True)
@@ -170,6 +168,8 @@ def _check_particles(particles: int) -> int:
     return int(particles)
 
 
+@register("stiffness", "pf", "noise-adaptive Rao-Blackwellised particle filter of the stiffness "
+          "and the sensor noise", cite="002 Alg. 1", default=True, params=StiffnessConfig)
 class NoiseAdaptivePF(_Setup):
     """Algorithm 1 of 002 (see :mod:`~vestim.estimators.stiffness.pf`).
 
@@ -226,6 +226,8 @@ class NoiseAdaptivePF(_Setup):
         return self.result(inputs, w_hat, w_sd, x_hat, np.sqrt(x_var), b_hat, "pf", ess, n_res)
 
 
+@register("stiffness", "augpf", "particle filter on the state augmented with the stiffness",
+          cite="002 Sec. VI-A", params=StiffnessConfig)
 class AugmentedPF(_Setup):
     """State-augmented particle filter of 002 Sec. VI-A (see :mod:`~vestim.estimators.stiffness.augpf`)."""
 
@@ -265,6 +267,8 @@ class AugmentedPF(_Setup):
         return self.result(inputs, w_hat, w_sd, x_hat, np.sqrt(x_var), b_hat, "augpf", ess, n_res)
 
 
+@register("stiffness", "rls", "RLS for the stiffness fed by a Kalman filter of the lateral "
+          "states", cite="002 Sec. VI-A", params=StiffnessConfig)
 class RlsKalman(_Setup):
     """RLS for the stiffness fed by a Kalman filter of the lateral states (002 Sec. VI-A).
 
@@ -296,6 +300,8 @@ class RlsKalman(_Setup):
         return self.result(inputs, w_out, w_sd, x_out, x_sd, np.zeros((k, 3)), "rls")
 
 
+@register("stiffness", "ekf", "EKF on [v_x, v_y, ψ̇, ΔC, bias]", cite="002 Sec. V",
+          params=StiffnessConfig)
 class AugmentedEKF(_Setup):
     """EKF on [v_x, v_y, ψ̇, ΔC (3), bias (3)] (002 Sec. V).
 
@@ -322,6 +328,14 @@ class AugmentedEKF(_Setup):
                    xa, pa, x_out, sd_out)
         return self.result(inputs, x_out[:, 3:6], sd_out[:, 3:6], x_out[:, 0:3], sd_out[:, 0:3],
                            x_out[:, 6:9], "ekf")
+
+
+_REGISTERED = registered("stiffness")
+METHODS: tuple[str, ...] = tuple(_REGISTERED)
+"""Names accepted by :func:`estimate_stiffness`, in the registry's order: Algorithm 1, AUGPF,
+RLS + KF, EKF (each registered on its estimator class)."""
+PF, AUGPF, RLS, EKF = (_REGISTERED[name].code for name in ("pf", "augpf", "rls", "ekf"))
+"""The estimators' registry codes."""
 
 
 def estimate_stiffness(
@@ -368,15 +382,13 @@ def estimate_stiffness(
     cfg = config if config is not None else StiffnessConfig()
     inputs = prepare_inputs(log, vehicle, cfg)
     result: StiffnessResult
-    if method == "pf":
-        result = NoiseAdaptivePF(vehicle, prior, cfg, particles).run(
-            inputs, np.random.default_rng(seed))
-    elif method == "augpf":
-        result = AugmentedPF(vehicle, prior, cfg, particles).run(inputs, np.random.default_rng(seed))
-    elif method == "rls":
-        result = RlsKalman(vehicle, prior, cfg).run(inputs)
+    estimator = _REGISTERED[method]
+    cls = estimator.impl
+    assert cls is not None  # every stiffness estimator registers its class above
+    if estimator.code in (PF, AUGPF):
+        result = cls(vehicle, prior, cfg, particles).run(inputs, np.random.default_rng(seed))
     else:
-        result = AugmentedEKF(vehicle, prior, cfg).run(inputs)
+        result = cls(vehicle, prior, cfg).run(inputs)
     out = result.to_frame()
     out.attrs.update({"method": method, "particles": str(particles), "seed": str(seed),
                       "resampled": str(result.n_resampled)})

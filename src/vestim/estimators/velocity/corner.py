@@ -51,6 +51,7 @@ import numpy as np
 from numba import njit
 
 from vestim.constants import CORNERS
+from vestim.estimators.registry import register, registered
 from vestim.estimators.velocity.corner_common import (
     CornerInputs,
     CornerOutputs,
@@ -81,6 +82,9 @@ __all__ = [
     "GAINS_001_Y",
     "GAINS_004",
     "GAINS_004_SCHEDULED",
+    "LPV",
+    "LUGRE_KF",
+    "LUGRE_UKF",
     "METHODS",
     "CornerVelocityEstimator",
     "CornerVelocityInput",
@@ -92,7 +96,19 @@ __all__ = [
     "gains_004_eq35",
 ]
 
-METHODS: tuple[str, ...] = ("lugre_kf", "lugre_ukf", "lpv")
+register("corner", "lugre_kf", "LuGre corner Kalman filter on [z̄_x, v_rx, ż̄_x] with the "
+         "high-slip switch", cite="000 eq. (16)–(23), (29)", default=True,
+         params=KFParams)(lugre_kf_kernel)
+register("corner", "lugre_ukf", "the LuGre corner model and switching with the UKF",
+         cite="003 Alg. 1", params=KFParams)(lugre_kf_kernel)
+register("corner", "lpv", "LPV corner observers, longitudinal and lateral",
+         cite="001 eq. (24), (38); 004 eq. (10)–(14), (35)", params=LPVParams)(lpv_kernel)
+_REGISTERED = registered("corner")
+METHODS: tuple[str, ...] = tuple(_REGISTERED)
+"""The corner observers' names, in the registry's order (each registered with its kernel and
+its Params class)."""
+LUGRE_KF, LUGRE_UKF, LPV = (_REGISTERED[name].code for name in ("lugre_kf", "lugre_ukf", "lpv"))
+"""The corner observers' registry codes."""
 
 
 def _corner_array(name: str, value: object, n: int, dtype: type = np.float64) -> np.ndarray:
@@ -208,6 +224,7 @@ def corner_params(vehicle: Vehicle, method: str,
     """The kernels' parameter tree of a corner observer (``method`` one of :data:`METHODS`,
     ``params`` of its kind): the vehicle's [tire] and geometry, the method's own values, and
     placeholders for the other method's fields."""
+    code = _REGISTERED[method].code
     tire = vehicle.tire
     hs = params.high_slip
     z1 = np.zeros(1)
@@ -224,11 +241,11 @@ def corner_params(vehicle: Vehicle, method: str,
         gy = (params.lateral or GAINS_001_Y).innovation_gains(tire.sigma1_y)
         lateral = params.lateral is not None
     return CornerParams(
-        method == "lpv", float(vehicle.body.wheel_radius),
+        code == LPV, float(vehicle.body.wheel_radius),
         np.ascontiguousarray(corner_positions(vehicle)[0]), tire.kappa_x, tire.sigma0_x,
         tire.sigma1_x, tire.sigma2_x, *kf, hs.lambda_upper, hs.lambda_lower, hs.beta_e,
         hs.omega_dot_threshold, hs.min_speed, hs.mu_release, *kf_arrays,
-        int(hs.release_window), method == "lugre_ukf", wm, wc, float(tau), tire.kappa_y,
+        int(hs.release_window), code == LUGRE_UKF, wm, wc, float(tau), tire.kappa_y,
         tire.sigma0_y, tire.sigma1_y, tire.sigma2_y, *gx, lateral, *gy)
 
 
@@ -277,20 +294,18 @@ class CornerVelocityEstimator:
                  params: KFParams | LPVParams | None = None) -> None:
         if method not in METHODS:
             raise ValueError(f"corner velocity method {method!r}: use one of {', '.join(METHODS)}")
-        if method == "lpv":
-            if params is None:
-                params = LPVParams()
-            if not isinstance(params, LPVParams):
-                raise ValueError(f"method 'lpv' takes LPVParams, got {type(params).__name__}")
-        else:
-            if params is None:
-                params = KFParams()
-            if not isinstance(params, KFParams):
-                raise ValueError(f"method {method!r} takes KFParams, got {type(params).__name__}")
+        kind = _REGISTERED[method].params
+        assert kind is not None  # every corner observer registers its Params class above
+        chosen: object = kind() if params is None else params
+        if not isinstance(chosen, kind) or not isinstance(chosen, KFParams | LPVParams):
+            raise ValueError(f"method {method!r} takes {kind.__name__}, "
+                             f"got {type(chosen).__name__}")
         self.vehicle = vehicle
         self.method = method
-        self.params: KFParams | LPVParams = params
-        self.kernel_params = corner_params(vehicle, method, params)
+        self.code = _REGISTERED[method].code
+        """The observer's registry code (:data:`LUGRE_KF`, :data:`LUGRE_UKF`, :data:`LPV`)."""
+        self.params: KFParams | LPVParams = chosen
+        self.kernel_params = corner_params(vehicle, method, chosen)
         """The kernels' parameter tree (:class:`~.corner_common.CornerParams`)."""
         self.reset()
 
@@ -321,7 +336,7 @@ class CornerVelocityEstimator:
         if finite.size and finite[0] <= self._t_last:
             raise ValueError(f"CornerVelocityInput.t starts at {finite[0]} s, not after the last "
                              f"sample already processed ({self._t_last} s); call reset() first")
-        if (self.method == "lpv" and self.kernel_params.lateral
+        if (self.code == LPV and self.kernel_params.lateral
                 and np.all(np.isnan(inp.mu_y))):
             raise ValueError("the lateral LPV observer needs mu_y (and a_yt); give them in "
                              "CornerVelocityInput or use LPVParams(lateral=None)")
