@@ -113,7 +113,7 @@ def run(only: list[str]) -> tuple[list[str], list[str]]:
     table = [
         "CG v_x NRMS % / worst-corner v_x NRMS %, nominal `[tire]` → tire fitted to the "
         "log's own measured signals (`design/tire_fit.py`). Score: "
-        "`../shared/crossplant/targets.py` `judge`. Last column: the issue's rule, fused "
+        "the crossplant data set's `targets.py` `judge`. Last column: the issue's rule, fused "
         "(default, nominal tire) minus the best single configuration (nominal tire), "
         f"must be ≤ {RULE} point.", "", head, "|---" * (len(CONFIGS) + 3) + "|", *rows, ""]
     fit_tab = [
