@@ -50,7 +50,7 @@ Missing channels (docs/format.md; the gap of 001 Sec. VI):
 from __future__ import annotations
 
 import math
-from collections.abc import Iterable, Mapping, Sequence
+from collections.abc import Mapping
 from dataclasses import dataclass, field
 from typing import NamedTuple
 
@@ -70,6 +70,7 @@ from vestim.filters.lowpass import (
     noise_variance,
 )
 from vestim.filters.ukf import ukf_weights
+from vestim.io.frames import ColumnGroup, columns_from_groups, frame_from_chunks
 from vestim.io.inputs import Inputs, inputs_from_log, inputs_from_sample
 from vestim.io.vehicle import Vehicle
 from vestim.models import chassis
@@ -359,10 +360,6 @@ def speed_hold(t: np.ndarray, fix: np.ndarray, ax: np.ndarray, state: SpeedHoldS
         out[k] = state.speed[0]
 
 
-ColumnGroup = tuple[list[str], np.ndarray]
-"""Spec column names and their values: (n,) for one name, (n, k) for k names."""
-
-
 @njit(cache=True, error_model="numpy")
 def normalised(force: np.ndarray, fz: np.ndarray) -> np.ndarray:
     """Normalised tire force F/F_z (n, 4), the papers' μ_x, μ_y; 0 where F_z ≤ 1 N (lifted)."""
@@ -399,50 +396,6 @@ def force_groups(res: Mapping[str, np.ndarray]) -> list[ColumnGroup]:
     groups += [(names("sigma_fy"), res["sigma_fy"]), (["roll"], res["roll"]),
                (["pitch"], res["pitch"])]
     return groups
-
-
-def columns_from_groups(groups: list[ColumnGroup]) -> dict[str, np.ndarray]:
-    """Flatten column groups into a name → (n,) mapping (views, no copies)."""
-    cols: dict[str, np.ndarray] = {}
-    for group_names, values in groups:
-        if values.ndim == 1:
-            cols[group_names[0]] = values
-        else:
-            for i, name in enumerate(group_names):
-                cols[name] = values[:, i]
-    return cols
-
-
-def frame_from_chunks(chunks: Iterable[list[ColumnGroup]], n: int,
-                      names: Sequence[str] = ()) -> pd.DataFrame:
-    """One float64 DataFrame from consecutive chunks of column groups (n samples in all).
-
-    The first chunk fixes the columns, unless ``names`` does (the columns of the earlier
-    pieces of a log estimated piece by piece); a later chunk fills its rows of the block, and
-    a column it lacks is NaN there. The block is filled as its transpose (pandas stores a
-    float block as (columns, samples)), so each group is one strided copy and the frame
-    is not copied again.
-    """
-    names = list(names)
-    rows: dict[str, int] = {name: j for j, name in enumerate(names)}
-    block = np.empty((len(names), n))
-    start = 0
-    for groups in chunks:
-        if not names:
-            names = [name for g, _ in groups for name in g]
-            rows = {name: j for j, name in enumerate(names)}
-            block = np.empty((len(names), n))
-        stop = start + groups[0][1].shape[0]
-        filled = np.zeros(len(names), dtype=bool)
-        for group_names, values in groups:
-            j = rows.get(group_names[0])
-            if j is None:  # a channel the first chunk did not have (method-dependent)
-                continue
-            block[j:j + len(group_names), start:stop] = values.T if values.ndim == 2 else values
-            filled[j:j + len(group_names)] = True
-        block[~filled, start:stop] = np.nan
-        start = stop
-    return pd.DataFrame(block.T, columns=names, copy=False)
 
 
 def force_columns(t: np.ndarray, res: Mapping[str, np.ndarray]) -> dict[str, np.ndarray]:
