@@ -30,7 +30,6 @@ import pandas as pd
 from scipy.stats import chi2
 
 from vestim.constants import CORNERS
-from vestim.estimators.force.estimator import inputs_from_log
 from vestim.estimators.uncertainty import (
     CALIBRATION_RUNS,
     UncertaintyParams,
@@ -39,6 +38,7 @@ from vestim.estimators.uncertainty import (
 )
 from vestim.io import load_vehicle, read_log
 from vestim.io.calibration import corrected_log
+from vestim.io.inputs import inputs_from_log
 from vestim.io.vehicle import Vehicle
 from vestim.metrics import coverage
 from vestim.pipeline import Pipeline, PipelineConfig

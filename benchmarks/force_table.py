@@ -26,8 +26,8 @@ import numpy as np
 from vestim.constants import CORNERS
 from vestim.estimators.force import ForceConfig, ForceEstimator
 from vestim.estimators.force import normal as nrm
-from vestim.estimators.force.estimator import inputs_from_log
 from vestim.io import load_vehicle
+from vestim.io.inputs import inputs_from_log
 from vestim.sim import SensorModel, get_maneuver, maneuver_names, simulate
 
 SKIP = {"coast", "split_mu_brake"}

@@ -25,7 +25,6 @@ from numba import njit
 
 from vestim.constants import CORNERS
 from vestim.estimators.force import ForceEstimator
-from vestim.estimators.force.estimator import inputs_from_log
 from vestim.estimators.friction import friction_potential, new_friction_state
 from vestim.estimators.health import imu_health_kernel, new_imu_state, wheel_health_kernel
 from vestim.estimators.health import new_state as new_health_state
@@ -39,6 +38,7 @@ from vestim.estimators.velocity.reference import (
 )
 from vestim.filters.ukf import sigma_points, ukf_weights
 from vestim.io import load_vehicle
+from vestim.io.inputs import inputs_from_log
 from vestim.pipeline import Pipeline, PipelineConfig
 from vestim.sim import get_maneuver, simulate
 

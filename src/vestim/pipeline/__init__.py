@@ -53,13 +53,7 @@ from vestim.constants import CORNERS, G
 from vestim.errors import LogFormatError
 from vestim.estimators import registry
 from vestim.estimators.force import ForceEstimator
-from vestim.estimators.force.estimator import (
-    WHEEL_OUTPUTS,
-    Inputs,
-    front_angles,
-    inputs_from_log,
-    sample_channels,
-)
+from vestim.estimators.force.estimator import WHEEL_OUTPUTS
 from vestim.estimators.friction import (
     corner_kx,
     friction_params,
@@ -92,6 +86,7 @@ from vestim.estimators.velocity.reference import (
 )
 from vestim.io.calibration import correct_columns, corrected_log
 from vestim.io.channels import REF_PREFIX, SPARSE
+from vestim.io.inputs import Inputs, front_angles, inputs_from_log, sample_channels
 from vestim.io.log import check_structure
 from vestim.io.sanity import validate_sample
 from vestim.io.vehicle import Vehicle

@@ -14,8 +14,8 @@ from hypothesis import strategies as st
 from vestim.constants import CORNERS
 from vestim.errors import LogFormatError
 from vestim.estimators.force import ForceEstimator
-from vestim.estimators.force.estimator import inputs_from_log
 from vestim.io import load_vehicle
+from vestim.io.inputs import inputs_from_log
 from vestim.models import chassis
 from vestim.pipeline import Pipeline
 from vestim.sim import SensorModel, get_maneuver, simulate

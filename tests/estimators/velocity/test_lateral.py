@@ -259,7 +259,7 @@ def test_the_roll_gradients_uncertainty_reaches_the_lateral_process_noise() -> N
     end of the Revs log (550 s of turns both ways; the 120 s of forgetting keep it from
     shrinking further), bound 2 %; with a roll rate (crossplant x05) 0."""
     from vestim.estimators.force import ForceEstimator
-    from vestim.estimators.force.estimator import inputs_from_log
+    from vestim.io.inputs import inputs_from_log
 
     truth = pd.read_parquet(REVS / "20140222_01_01_03.parquet")
     veh = load_vehicle(REVS / "vehicle.toml")

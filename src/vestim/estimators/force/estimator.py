@@ -50,16 +50,15 @@ Missing channels (docs/format.md; the gap of 001 Sec. VI):
 from __future__ import annotations
 
 import math
-from collections.abc import Iterable, Mapping, Sequence
+from collections.abc import Mapping
 from dataclasses import dataclass, field
-from typing import Any, NamedTuple
+from typing import NamedTuple
 
 import numpy as np
 import pandas as pd
 from numba import njit
 
 from vestim.constants import CORNERS, G
-from vestim.errors import LogFormatError
 from vestim.estimators.force import lateral as lat
 from vestim.estimators.force import longitudinal as lon
 from vestim.estimators.force import normal as nrm
@@ -71,21 +70,15 @@ from vestim.filters.lowpass import (
     noise_variance,
 )
 from vestim.filters.ukf import ukf_weights
-from vestim.io.log import road_wheel_angles
+from vestim.io.frames import ColumnGroup, columns_from_groups, frame_from_chunks
+from vestim.io.inputs import Inputs, inputs_from_log, inputs_from_sample
 from vestim.io.vehicle import Vehicle
 from vestim.models import chassis
 from vestim.models.kinematics import level_road_az, road_specific_force
 from vestim.params import check_ranges, pack
 
-TORQUES: tuple[str, ...] = tuple(f"torque_{c}" for c in CORNERS)
 ACCELEROMETERS: tuple[str, ...] = ("specific_force", "gravity_free")
 """What a log's ``ax``, ``ay``, ``az`` may hold (:attr:`ForceConfig.accelerometer`)."""
-OMEGAS: tuple[str, ...] = tuple(f"omega_{c}" for c in CORNERS)
-SPEEDS: tuple[str, ...] = ("vehicle_speed", "gnss_speed")
-"""Speed channels that stand in for the wheel speeds (dense first: preferred)."""
-REQUIRED = ("t", "ay", "yaw_rate")
-"""Channels the force stage cannot do without, besides a speed: the four ``omega_*`` or one
-of :data:`SPEEDS`. The torques and wheel speeds are all-or-none (see module doc)."""
 WHEEL_OUTPUTS: tuple[str, ...] = ("fx", "mu_x", "sigma_fx")
 """Per-corner force outputs (``<name>_fl`` …) that need wheel speeds (left out without them)."""
 AX_TAU = (0.05, 0.05)
@@ -206,181 +199,6 @@ class ForceConfig:
         if not math.isfinite(self.roll_gradient_prior):
             raise ValueError(f"force_params roll_gradient_prior = {self.roll_gradient_prior} "
                              "must be finite")
-
-
-@dataclass
-class Inputs:
-    """Measured channels of a chunk as contiguous float arrays (SI units, spec names).
-
-    A channel the log does not have is NaN (``az``, ``roll_rate``, ``pitch_rate``,
-    all four ``torque`` columns) and its ``*_measured`` flag is False.
-    :meth:`ForceEstimator.advance` replaces a NaN ``torque`` by the chassis-equation
-    torques it used, so later stages (the reference-speed filter's slip evidence)
-    see the same torques as the force stage.
-
-    Attributes:
-        t: (n,) s. omega: (n, 4) rad/s. torque: (n, 4) N m, net drive minus brake.
-        ax, ay, az: (n,) m/s², specific force. yaw_rate, roll_rate, pitch_rate: (n,) rad/s.
-        delta: (n, 4) rad, road-wheel angles, rear wheels 0.
-        gnss_speed: (n,) m/s, speed over ground where a GNSS fix falls, NaN elsewhere.
-    """
-
-    t: np.ndarray
-    omega: np.ndarray
-    torque: np.ndarray
-    ax: np.ndarray
-    ay: np.ndarray
-    az: np.ndarray
-    yaw_rate: np.ndarray
-    roll_rate: np.ndarray
-    pitch_rate: np.ndarray
-    delta: np.ndarray
-    gnss_speed: np.ndarray
-    torque_measured: bool = True
-    az_measured: bool = True
-    roll_rate_measured: bool = True
-    pitch_rate_measured: bool = True
-    vehicle_speed: np.ndarray | None = None
-    ax_measured: bool = True
-    omega_measured: bool = True
-
-    @property
-    def speed_source(self) -> str:
-        """"wheel_speeds", or the speed channel that stands in for them."""
-        if self.omega_measured:
-            return "wheel_speeds"
-        return "vehicle_speed" if self.vehicle_speed is not None else "gnss_speed"
-
-    @property
-    def sources(self) -> dict[str, str]:
-        """Where each optional input comes from (see :attr:`ForceEstimator.input_sources`).
-
-        ``ax_source`` and ``speed_source`` are listed only where a_x or the wheel speeds are
-        missing (the pipeline lists them always)."""
-        out = {
-            "torque_source": "measured" if self.torque_measured else "chassis",
-            "roll_source": "rate" if self.roll_rate_measured else "quasi_static",
-            "pitch_source": "rate" if self.pitch_rate_measured else "quasi_static",
-            "az_source": "measured" if self.az_measured else "level_road",
-        }
-        if not self.ax_measured:
-            out["ax_source"] = self.speed_source
-        if not self.omega_measured:
-            out["speed_source"] = self.speed_source
-        return out
-
-
-def check_torques(present: set[str] | Mapping[str, float], what: str) -> bool:
-    """True if all four torques are present, False if none; else a LogFormatError naming them."""
-    have = [c for c in TORQUES if c in present]
-    if len(have) in (0, len(TORQUES)):
-        return len(have) == len(TORQUES)
-    missing = [c for c in TORQUES if c not in present]
-    raise LogFormatError(
-        f"the {what} has wheel torque(s) {', '.join(have)} but not {', '.join(missing)}: give "
-        "all four net wheel torques (drive minus brake, N·m) or drop every torque_* column, "
-        "in which case F_x comes from the chassis equation (vestim.models.chassis)")
-
-
-def check_speeds(present: set[str] | Mapping[str, float], what: str) -> bool:
-    """True if all four wheel speeds are present, False if none and a speed channel stands in;
-    else a LogFormatError naming what is missing."""
-    have = [c for c in OMEGAS if c in present]
-    if len(have) == len(OMEGAS):
-        return True
-    if have:
-        missing = [c for c in OMEGAS if c not in present]
-        raise LogFormatError(
-            f"the {what} has wheel speed(s) {', '.join(have)} but not {', '.join(missing)}: "
-            "give all four (rad/s) or drop every omega_* column and give gnss_speed or "
-            "vehicle_speed (m/s)")
-    if not any(c in present for c in SPEEDS):
-        raise LogFormatError(
-            f"the {what} has no speed channel: give the four wheel speeds omega_fl … omega_rr "
-            "(rad/s), or gnss_speed (sparse) or vehicle_speed (dense CAN vehicle speed), m/s")
-    return False
-
-
-def sample_channels(sample: Mapping[str, Any]) -> tuple[bool, bool, str]:
-    """What one sample (a live feed's mapping of channel names) holds: whether it has the
-    four wheel torques, the four wheel speeds, and its steering channel (``delta_fl`` for
-    both front road-wheel angles, ``delta`` or ``steering_wheel_angle``).
-
-    Raises:
-        LogFormatError: a required channel or the steering is missing; some wheel speeds or
-            torques but not all four; no speed channel at all.
-    """
-    missing = [c for c in REQUIRED if c not in sample]
-    if missing:
-        raise LogFormatError(f"the force estimators need channel(s) {', '.join(missing)} "
-                             "in every sample")
-    torques = check_torques(sample, "sample")
-    wheels = check_speeds(sample, "sample")
-    steering = next((k for k in ("delta_fl", "delta", "steering_wheel_angle") if k in sample
-                     and (k != "delta_fl" or "delta_fr" in sample)), None)
-    if steering is None:
-        raise LogFormatError("no steering channel: give delta_fl and delta_fr, delta, or "
-                             "steering_wheel_angle")
-    return torques, wheels, steering
-
-
-def front_angles(sample: Mapping[str, Any], steering: str,
-                 steering_ratio: float) -> tuple[float, float]:
-    """The front road-wheel angles (left, right), rad, of a sample whose steering channel is
-    ``steering`` (:func:`sample_channels`); a steering-wheel angle over the ratio."""
-    if steering == "delta_fl":
-        return float(sample["delta_fl"]), float(sample["delta_fr"])
-    d = float(sample[steering])
-    if steering == "steering_wheel_angle":
-        d = d / steering_ratio
-    return d, d
-
-
-def _column(log: pd.DataFrame, name: str, default: float) -> np.ndarray:
-    if name in log.columns:
-        return np.ascontiguousarray(log[name].to_numpy(dtype=float))
-    return np.full(len(log), default)
-
-
-def inputs_from_log(log: pd.DataFrame, vehicle: Vehicle) -> Inputs:
-    """Extract and check the measured channels the force stage needs (never ``ref_``).
-
-    Required: ``t``, ``ay``, ``yaw_rate``, a steering channel and a speed (the four
-    ``omega_*``, or ``vehicle_speed`` or ``gnss_speed``). Optional: ``ax``, the four
-    ``torque_*`` together, ``az``, ``roll_rate``, ``pitch_rate`` (NaN in :class:`Inputs` when
-    absent, ``omega`` too; see the module docstring for what is lost).
-
-    Raises:
-        LogFormatError: a required column is missing, or only some of the torques or wheel
-            speeds are there.
-    """
-    missing = [c for c in REQUIRED if c not in log.columns]
-    if missing:
-        raise LogFormatError(f"the force estimators need column(s) {', '.join(missing)}; "
-                             "add them to the log (see docs/format.md)")
-    cols = set(log.columns)
-    has_torque = check_torques(cols, "log")
-    has_omega = check_speeds(cols, "log")
-    front = road_wheel_angles(log, vehicle.body.steering_ratio)
-    delta = np.zeros((len(log), 4))
-    delta[:, :2] = front
-    torque = (np.ascontiguousarray(log[list(TORQUES)].to_numpy(dtype=float)) if has_torque
-              else np.full((len(log), 4), np.nan))
-    return Inputs(
-        t=np.ascontiguousarray(log["t"].to_numpy(dtype=float)),
-        omega=(np.ascontiguousarray(log[list(OMEGAS)].to_numpy(dtype=float)) if has_omega
-               else np.full((len(log), 4), np.nan)),
-        torque=torque,
-        ax=_column(log, "ax", np.nan), ay=_column(log, "ay", 0.0), az=_column(log, "az", np.nan),
-        yaw_rate=_column(log, "yaw_rate", 0.0), roll_rate=_column(log, "roll_rate", np.nan),
-        pitch_rate=_column(log, "pitch_rate", np.nan), delta=delta,
-        gnss_speed=_column(log, "gnss_speed", np.nan),
-        torque_measured=has_torque, az_measured="az" in cols,
-        roll_rate_measured="roll_rate" in cols, pitch_rate_measured="pitch_rate" in cols,
-        vehicle_speed=(_column(log, "vehicle_speed", np.nan) if "vehicle_speed" in cols
-                       else None),
-        ax_measured="ax" in cols, omega_measured=has_omega,
-    )
 
 
 class SpeedDerivativeState(NamedTuple):
@@ -542,10 +360,6 @@ def speed_hold(t: np.ndarray, fix: np.ndarray, ax: np.ndarray, state: SpeedHoldS
         out[k] = state.speed[0]
 
 
-ColumnGroup = tuple[list[str], np.ndarray]
-"""Spec column names and their values: (n,) for one name, (n, k) for k names."""
-
-
 @njit(cache=True, error_model="numpy")
 def normalised(force: np.ndarray, fz: np.ndarray) -> np.ndarray:
     """Normalised tire force F/F_z (n, 4), the papers' μ_x, μ_y; 0 where F_z ≤ 1 N (lifted)."""
@@ -582,50 +396,6 @@ def force_groups(res: Mapping[str, np.ndarray]) -> list[ColumnGroup]:
     groups += [(names("sigma_fy"), res["sigma_fy"]), (["roll"], res["roll"]),
                (["pitch"], res["pitch"])]
     return groups
-
-
-def columns_from_groups(groups: list[ColumnGroup]) -> dict[str, np.ndarray]:
-    """Flatten column groups into a name → (n,) mapping (views, no copies)."""
-    cols: dict[str, np.ndarray] = {}
-    for group_names, values in groups:
-        if values.ndim == 1:
-            cols[group_names[0]] = values
-        else:
-            for i, name in enumerate(group_names):
-                cols[name] = values[:, i]
-    return cols
-
-
-def frame_from_chunks(chunks: Iterable[list[ColumnGroup]], n: int,
-                      names: Sequence[str] = ()) -> pd.DataFrame:
-    """One float64 DataFrame from consecutive chunks of column groups (n samples in all).
-
-    The first chunk fixes the columns, unless ``names`` does (the columns of the earlier
-    pieces of a log estimated piece by piece); a later chunk fills its rows of the block, and
-    a column it lacks is NaN there. The block is filled as its transpose (pandas stores a
-    float block as (columns, samples)), so each group is one strided copy and the frame
-    is not copied again.
-    """
-    names = list(names)
-    rows: dict[str, int] = {name: j for j, name in enumerate(names)}
-    block = np.empty((len(names), n))
-    start = 0
-    for groups in chunks:
-        if not names:
-            names = [name for g, _ in groups for name in g]
-            rows = {name: j for j, name in enumerate(names)}
-            block = np.empty((len(names), n))
-        stop = start + groups[0][1].shape[0]
-        filled = np.zeros(len(names), dtype=bool)
-        for group_names, values in groups:
-            j = rows.get(group_names[0])
-            if j is None:  # a channel the first chunk did not have (method-dependent)
-                continue
-            block[j:j + len(group_names), start:stop] = values.T if values.ndim == 2 else values
-            filled[j:j + len(group_names)] = True
-        block[~filled, start:stop] = np.nan
-        start = stop
-    return pd.DataFrame(block.T, columns=names, copy=False)
 
 
 def force_columns(t: np.ndarray, res: Mapping[str, np.ndarray]) -> dict[str, np.ndarray]:
@@ -858,30 +628,5 @@ class ForceEstimator:
         Builds the one-sample input arrays directly (no DataFrame), so a call costs
         tens of microseconds, dominated by the kernels' dispatch.
         """
-        u = self._inputs_from_sample(sample)
+        u = inputs_from_sample(sample, self.vehicle)
         return {k: float(v[0]) for k, v in force_columns(u.t, self.advance(u)).items()}
-
-    def _inputs_from_sample(self, sample: Mapping[str, float]) -> Inputs:
-        has_torque, has_omega, steering = sample_channels(sample)
-        front = front_angles(sample, steering, self.vehicle.body.steering_ratio)
-
-        def one(name: str, default: float) -> np.ndarray:
-            return np.array([float(sample.get(name, default))])
-
-        return Inputs(
-            t=one("t", np.nan),
-            omega=(np.array([[float(sample[c]) for c in OMEGAS]]) if has_omega
-                   else np.full((1, 4), np.nan)),
-            torque=(np.array([[float(sample[c]) for c in TORQUES]]) if has_torque
-                    else np.full((1, 4), np.nan)),
-            ax=one("ax", np.nan), ay=one("ay", 0.0), az=one("az", np.nan),
-            yaw_rate=one("yaw_rate", 0.0), roll_rate=one("roll_rate", np.nan),
-            pitch_rate=one("pitch_rate", np.nan),
-            delta=np.array([[float(front[0]), float(front[1]), 0.0, 0.0]]),
-            gnss_speed=one("gnss_speed", np.nan),
-            torque_measured=has_torque, az_measured="az" in sample,
-            roll_rate_measured="roll_rate" in sample, pitch_rate_measured="pitch_rate" in sample,
-            vehicle_speed=(one("vehicle_speed", np.nan) if "vehicle_speed" in sample
-                           else None),
-            ax_measured="ax" in sample, omega_measured=has_omega,
-        )
