@@ -204,10 +204,11 @@ def test_unverified_vy_is_flagged_and_warned(maneuver: str, share: float) -> Non
 @pytest.mark.skipif(not CAMPAIGN.exists(), reason=f"campaign logs not found at {CAMPAIGN}")
 def test_declared_gravity_free_accelerations_are_taken_as_such() -> None:
     """Campaign s1_030 (sine steer, INS-type gravity-free a_y, with a roll rate): as given,
-    the roll filter's g sin φ is removed from an a_y that holds none, β RMS 0.67°; with the
-    log's metadata accelerometer = "gravity_free" (a channel map's [imu] acceleration) it is
-    not, 0.11° (both measured; β = 0 gives 0.72°). A value that is neither kind is an error
-    naming the key."""
+    the roll filter's g sin φ is removed from an a_y that holds none, β RMS 0.33° (0.67°
+    before the v_y pseudo-measurements' σ stopped growing with f_y's noise, session 15); with
+    the log's metadata accelerometer = "gravity_free" (a channel map's [imu] acceleration) it
+    is not, 0.11° (both measured; β = 0 gives 0.72°). A value that is neither kind is an
+    error naming the key."""
     from vestim.errors import LogFormatError
 
     truth = pd.read_parquet(CAMPAIGN / "s1_030_sine_steer.parquet")
@@ -216,7 +217,7 @@ def test_declared_gravity_free_accelerations_are_taken_as_such() -> None:
     as_given = _beta_rmse(truth, Pipeline(vehicle).run(log))
     log.attrs["accelerometer"] = "gravity_free"
     declared = _beta_rmse(truth, Pipeline(vehicle).run(log))
-    assert as_given >= 0.6
+    assert as_given >= 0.25
     assert declared <= 0.15
     log.attrs["accelerometer"] = "ins"
     with pytest.raises(LogFormatError, match="accelerometer = 'ins'"):
