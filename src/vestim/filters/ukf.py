@@ -21,7 +21,7 @@ from typing import Any
 import numpy as np
 from numba import njit
 
-from vestim.filters.linalg import cholesky
+from vestim.filters.linalg import JITTER, cholesky
 
 _JIT: dict[str, Any] = {"cache": True, "error_model": "numpy"}
 
@@ -62,6 +62,43 @@ def sigma_points(x: np.ndarray, P: np.ndarray, tau: float, L: np.ndarray, out: n
         for j in range(n):
             out[1 + i, j] = x[j] + tau * L[j, i]
             out[1 + n + i, j] = x[j] - tau * L[j, i]
+
+
+@njit(**_JIT)
+def sigma_points3(x0: float, x1: float, x2: float, p00: float, p10: float, p11: float,
+                  p20: float, p21: float, p22: float, tau: float, out: np.ndarray) -> None:
+    """:func:`sigma_points` for N = 3 from the state's components and P's lower triangle,
+    written out: the same operations in the same order (so the same numbers, bit for bit:
+    the Cholesky factor of :func:`vestim.filters.linalg.cholesky` with its pivot floor, the
+    zero entries of L added as +0.0), without the loops over a run-time size or the views of
+    a state array. ``out`` (7, 3)."""
+    scale = max(max(max(0.0, abs(p00)), abs(p11)), abs(p22))
+    floor = JITTER * scale if scale > 0.0 else JITTER
+    s = p00
+    if not s > floor:
+        s = floor
+    l00 = math.sqrt(s)
+    l10 = p10 / l00
+    l20 = p20 / l00
+    s = p11 - l10 * l10
+    if not s > floor:
+        s = floor
+    l11 = math.sqrt(s)
+    l21 = (p21 - l20 * l10) / l11
+    s = p22 - l20 * l20 - l21 * l21
+    if not s > floor:
+        s = floor
+    l22 = math.sqrt(s)
+    a00, a10, a20 = tau * l00, tau * l10, tau * l20
+    a11, a21, a22 = tau * l11, tau * l21, tau * l22
+    zero = tau * 0.0
+    out[0, 0], out[0, 1], out[0, 2] = x0, x1, x2
+    out[1, 0], out[1, 1], out[1, 2] = x0 + a00, x1 + a10, x2 + a20
+    out[2, 0], out[2, 1], out[2, 2] = x0 + zero, x1 + a11, x2 + a21
+    out[3, 0], out[3, 1], out[3, 2] = x0 + zero, x1 + zero, x2 + a22
+    out[4, 0], out[4, 1], out[4, 2] = x0 - a00, x1 - a10, x2 - a20
+    out[5, 0], out[5, 1], out[5, 2] = x0 - zero, x1 - a11, x2 - a21
+    out[6, 0], out[6, 1], out[6, 2] = x0 - zero, x1 - zero, x2 - a22
 
 
 @njit(**_JIT)
