@@ -1,0 +1,44 @@
+"""The fixed-size sigma points of vestim.filters.ukf equal the general ones bit for bit.
+
+The force stage's kernels call the written-out forms for speed (issue 27); the pipeline's
+numbers stay unchanged only if every sigma point is the same float as
+:func:`sigma_points` gives, including where the Cholesky pivot floor acts.
+"""
+
+import numpy as np
+import pytest
+
+from vestim.filters.ukf import sigma_points, sigma_points3, ukf_weights
+
+
+def _general(x: np.ndarray, P: np.ndarray) -> np.ndarray:
+    n = x.shape[0]
+    out = np.empty((2 * n + 1, n))
+    sigma_points(x, P, ukf_weights(n)[2], np.empty((n, n)), out)
+    return out
+
+
+@pytest.mark.parametrize("seed", range(20))
+def test_sigma_points3_equals_the_general_form_bit_for_bit(seed):
+    rng = np.random.default_rng(seed)
+    q, _ = np.linalg.qr(rng.standard_normal((3, 3)))
+    P = (q * 10.0 ** rng.uniform(-3, 6, 3)) @ q.T
+    x = rng.standard_normal(3) * 10.0 ** rng.uniform(-2, 4, 3)
+    x[seed % 3] = -0.0 if seed % 2 else x[seed % 3]  # a signed zero survives as in the loop
+    out = np.empty((7, 3))
+    sigma_points3(x[0], x[1], x[2], P[0, 0], P[1, 0], P[1, 1], P[2, 0], P[2, 1], P[2, 2],
+                  ukf_weights(3)[2], out)
+    ref = _general(x, P)
+    assert np.array_equal(out, ref)
+    assert np.array_equal(np.signbit(out), np.signbit(ref))
+
+
+@pytest.mark.parametrize("P", [np.zeros((3, 3)),  # every pivot floored (scale 0)
+                               np.diag([4.0, 0.0, -1e-9]),  # the 2nd and 3rd floored
+                               np.ones((3, 3))])  # rank 1: round-off pivots floored
+def test_sigma_points3_floors_lost_pivots_as_the_general_form(P):
+    x = np.array([1.0, -2.0, 3.0])
+    out = np.empty((7, 3))
+    sigma_points3(x[0], x[1], x[2], P[0, 0], P[1, 0], P[1, 1], P[2, 0], P[2, 1], P[2, 2],
+                  ukf_weights(3)[2], out)
+    assert np.array_equal(out, _general(x, P))
