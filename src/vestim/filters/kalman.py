@@ -48,7 +48,7 @@ from typing import Any
 import numpy as np
 from numba import njit
 
-from vestim.filters.linalg import chol_solve, cholesky
+from vestim.filters.linalg import cholesky
 
 _JIT: dict[str, Any] = {"cache": True, "error_model": "numpy"}
 
@@ -129,8 +129,20 @@ def _gain_and_state(x: np.ndarray, S: np.ndarray, C: np.ndarray, nu: np.ndarray,
     the innovation covariance; L (m, m) its factor), then x̂ ← x̂ + K ν. Returns False when S
     needed the Cholesky pivot floor."""
     ok = cholesky(S, L)
+    m = S.shape[0]
     for i in range(x.shape[0]):
-        chol_solve(L, C[i], K[i])
+        # K[i] = S⁻¹ C[i]: chol_solve's forward and back substitutions, on the rows by
+        # index (a row view per state costs more than the solve at these sizes)
+        for a in range(m):
+            acc = C[i, a]
+            for b in range(a):
+                acc -= L[a, b] * K[i, b]
+            K[i, a] = acc / L[a, a]
+        for a in range(m - 1, -1, -1):
+            acc = K[i, a]
+            for b in range(a + 1, m):
+                acc -= L[b, a] * K[i, b]
+            K[i, a] = acc / L[a, a]
     for i in range(x.shape[0]):
         acc = x[i]
         for a in range(nu.shape[0]):
