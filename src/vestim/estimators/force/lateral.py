@@ -66,7 +66,7 @@ import numpy as np
 from numba import njit
 
 from vestim.filters.kalman import ukf_update
-from vestim.filters.ukf import sigma_points
+from vestim.filters.ukf import sigma_points4
 from vestim.params import check_ranges
 
 _JIT: dict[str, Any] = {"cache": True, "error_model": "numpy"}
@@ -291,7 +291,6 @@ def lateral_kernel(p: LateralKernelParams, s: LateralState, t: np.ndarray, fx: n
     Pm = np.empty((N_X, N_X))
     Pyy = np.empty((N_Y, N_Y))
     Pxy = np.empty((N_X, N_Y))
-    L = np.empty((N_X, N_X))
     Ly = np.empty((N_Y, N_Y))
     K = np.empty((N_X, N_Y))
     H = np.empty((N_Y, N_X))
@@ -326,7 +325,7 @@ def lateral_kernel(p: LateralKernelParams, s: LateralState, t: np.ndarray, fx: n
             dt = t[k] - t_prev[0]
             elapsed[0] += dt
             # Prediction: forces random walk, yaw rate by the yaw moment (001 eq. (9)).
-            sigma_points(x, P, tau, L, pts)
+            sigma_points4(x, P, tau, pts)
             for i in range(4):
                 fc_prev[i] = fx_prev[i] * cd_prev[i]
                 fs_prev[i] = fx_prev[i] * sd_prev[i]
