@@ -65,7 +65,7 @@ from typing import Any, NamedTuple
 import numpy as np
 from numba import njit
 
-from vestim.filters.kalman import ukf_update
+from vestim.filters.kalman import ukf_update4
 from vestim.filters.ukf import sigma_points4
 from vestim.params import check_ranges
 
@@ -427,7 +427,7 @@ def lateral_kernel(p: LateralKernelParams, s: LateralState, t: np.ndarray, fx: n
                 walk_factor[0] = min(1.0 + nu2 / (p.adapt_nu * p.adapt_nu), p.adapt_cap)
             x[:] = xm
             P[:, :] = Pm
-            ukf_update(x, P, Pxy, Pyy, y, Ly, K)  # K = Pxy Pyy⁻¹, x̂ += K ν, P −= K Pxyᵀ
+            ukf_update4(x, P, Pxy, Pyy, y, Ly, K)  # K = Pxy Pyy⁻¹, x̂ += K ν, P −= K Pxyᵀ
         if p.bias_tau > 0.0:
             # Offset of the lateral balance: f_y − r v_x is the sideslip acceleration v̇_y,
             # zero on average, plus what the attitude filter leaks into f_y at low
