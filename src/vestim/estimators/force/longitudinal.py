@@ -211,7 +211,7 @@ def ukf_rw_kernel(p: LongitudinalParams, s: LongitudinalState, t: np.ndarray, om
             sigma[k, c] = np.sqrt(max(P[c, 1, 1], 0.0))
             high[k, c] = is_high
             prev_torque[c] = torque[k, c]
-        _push(hist_t, hist_w, t[k], omega[k])
+        _push(hist_t, hist_w, t, omega, k)
 
 
 @njit(**_JIT)
@@ -231,16 +231,18 @@ def _omega_dot(hist_t: np.ndarray, hist_w: np.ndarray, tk: float, wk: float, c: 
 
 
 @njit(**_JIT)
-def _push(hist_t: np.ndarray, hist_w: np.ndarray, tk: float, wk: np.ndarray) -> None:
-    """Shift the (time, ω) history by one sample and append the newest."""
+def _push(hist_t: np.ndarray, hist_w: np.ndarray, t: np.ndarray, omega: np.ndarray,
+          k: int) -> None:
+    """Shift the (time, ω) history by one sample and append sample k of t (n,), omega (n, 4)
+    (indexed here: a row view per sample costs a reference count)."""
     m = hist_t.shape[0]
     for j in range(m - 1):
         hist_t[j] = hist_t[j + 1]
         for c in range(4):
             hist_w[j, c] = hist_w[j + 1, c]
-    hist_t[m - 1] = tk
+    hist_t[m - 1] = t[k]
     for c in range(4):
-        hist_w[m - 1, c] = wk[c]
+        hist_w[m - 1, c] = omega[k, c]
 
 
 # ---------------------------------------------------- UKF on [ω, ω̇, T] (default)
@@ -512,7 +514,7 @@ def ukf_kernel(t: np.ndarray, omega: np.ndarray, torque: np.ndarray, prm: UKFKer
             var = (P[c, A_T, A_T] - 2.0 * iw * P[c, A_T, A_A] + iw * iw * P[c, A_A, A_A])
             sigma[k, c] = np.sqrt(max(var, 0.0)) / radius
             high[k, c] = is_high or now_innov or now_torque
-        _push(hist_t, hist_w, t[k], omega[k])
+        _push(hist_t, hist_w, t, omega, k)
 
 
 @njit(**_JIT)
