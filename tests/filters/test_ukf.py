@@ -1,4 +1,4 @@
-"""The fixed-size sigma points (N = 3, 4) of vestim.filters.ukf equal the general ones bit for bit.
+"""The fixed-size sigma points (N = 2, 3, 4) of vestim.filters.ukf equal the general ones bit for bit.
 
 The force stage's kernels call the written-out forms for speed (issue 27); the pipeline's
 numbers stay unchanged only if every sigma point is the same float as
@@ -8,7 +8,7 @@ numbers stay unchanged only if every sigma point is the same float as
 import numpy as np
 import pytest
 
-from vestim.filters.ukf import sigma_points, sigma_points3, sigma_points4, ukf_weights
+from vestim.filters.ukf import sigma_points, sigma_points2, sigma_points3, sigma_points4, ukf_weights
 
 
 def _general(x: np.ndarray, P: np.ndarray) -> np.ndarray:
@@ -65,3 +65,24 @@ def test_sigma_points4_floors_lost_pivots_as_the_general_form(P):
     out = np.empty((9, 4))
     sigma_points4(x, P, ukf_weights(4)[2], out)
     assert np.array_equal(out, _general(x, P))
+
+
+@pytest.mark.parametrize("seed", range(20))
+def test_sigma_points2_equals_the_general_form_bit_for_bit(seed):
+    rng = np.random.default_rng(seed)
+    q, _ = np.linalg.qr(rng.standard_normal((2, 2)))
+    P = (q * 10.0 ** rng.uniform(-3, 6, 2)) @ q.T
+    x = rng.standard_normal(2) * 10.0 ** rng.uniform(-2, 4, 2)
+    x[seed % 2] = -0.0 if seed % 4 < 2 else x[seed % 2]
+    out = np.empty((5, 2))
+    sigma_points2(x[0], x[1], P[0, 0], P[1, 0], P[1, 1], ukf_weights(2)[2], out)
+    ref = _general(x, P)
+    assert np.array_equal(out, ref)
+    assert np.array_equal(np.signbit(out), np.signbit(ref))
+
+
+@pytest.mark.parametrize("P", [np.zeros((2, 2)), np.diag([4.0, -1e-9]), np.ones((2, 2))])
+def test_sigma_points2_floors_lost_pivots_as_the_general_form(P):
+    out = np.empty((5, 2))
+    sigma_points2(1.0, -2.0, P[0, 0], P[1, 0], P[1, 1], ukf_weights(2)[2], out)
+    assert np.array_equal(out, _general(np.array([1.0, -2.0]), P))

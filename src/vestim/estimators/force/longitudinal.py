@@ -32,7 +32,7 @@ import numpy as np
 from numba import njit
 
 from vestim.estimators.registry import register, registered
-from vestim.filters.ukf import sigma_points, sigma_points3, ukf_weights
+from vestim.filters.ukf import sigma_points2, sigma_points3, ukf_weights
 from vestim.io.vehicle import Vehicle
 from vestim.params import check_ranges, pack
 
@@ -146,7 +146,6 @@ def ukf_rw_kernel(p: LongitudinalParams, s: LongitudinalState, t: np.ndarray, om
     pts = np.empty((5, 2))
     xm = np.empty(2)
     Pm = np.empty((2, 2))
-    L = np.empty((2, 2))
     for k in range(n):
         if np.isnan(hist_t[0]):
             for c in range(4):
@@ -167,7 +166,7 @@ def ukf_rw_kernel(p: LongitudinalParams, s: LongitudinalState, t: np.ndarray, om
             is_high = abs(_omega_dot(hist_t, hist_w, t[k], omega[k, c], c)) > omega_dot_high
             q_f = q_force_high if is_high else q_force
             # Prediction through the wheel dynamics: sigma points of (x, P).
-            sigma_points(x[c], P[c], tau, L, pts)
+            sigma_points2(x[c, W], x[c, F], P[c, 0, 0], P[c, 1, 0], P[c, 1, 1], tau, pts)
             for i in range(5):
                 pts[i, W] = pts[i, W] + dt / iw * (prev_torque[c] - radius * pts[i, F])
             xm[0] = 0.0
@@ -186,7 +185,7 @@ def ukf_rw_kernel(p: LongitudinalParams, s: LongitudinalState, t: np.ndarray, om
             Pm[0, 0] += (dt / iw) ** 2 * r_torque
             Pm[1, 1] += q_f * dt
             # Measurement update with the wheel speed.
-            sigma_points(xm, Pm, tau, L, pts)
+            sigma_points2(xm[0], xm[1], Pm[0, 0], Pm[1, 0], Pm[1, 1], tau, pts)
             zhat = 0.0
             for i in range(5):
                 zhat += wm[i] * pts[i, W]
