@@ -10,7 +10,13 @@ import numpy as np
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from vestim.filters.kalman import _joseph, kalman_update, kalman_update_scalar, ukf_update
+from vestim.filters.kalman import (
+    _joseph,
+    kalman_update,
+    kalman_update_scalar,
+    ukf_update,
+    ukf_update4,
+)
 from vestim.filters.ukf import sigma_points, ukf_weights, weighted_cross, weighted_mean
 
 _case = st.tuples(st.integers(1, 6), st.integers(1, 3), st.integers(0, 2**32 - 1))
@@ -183,3 +189,21 @@ def test_ukf_update_with_sigma_points_equals_the_linear_kalman_update(case):
     np.testing.assert_allclose(xu, xk, rtol=1e-8, atol=1e-8 * (1 + np.abs(xk).max()))
     np.testing.assert_allclose(Pu, Pk, rtol=0, atol=1e-8 * scale)
     np.testing.assert_array_equal(Pu, Pu.T)
+
+
+@settings(max_examples=30, deadline=None)
+@given(st.integers(0, 2**32 - 1))
+def test_ukf_update4_equals_ukf_update_bit_for_bit(seed):
+    """The lateral force UKF's fixed-size update (issue 27's speed) must give the numbers of
+    the general one exactly, so the pipeline's outputs do not move."""
+    rng = np.random.default_rng(seed)
+    P = _spd(rng, 4)
+    Pxy = P @ rng.standard_normal((4, 4))
+    Pyy = _spd(rng, 4) + Pxy.T @ np.linalg.solve(P, Pxy)
+    x, nu = rng.standard_normal(4), rng.standard_normal(4)
+    xa, Pa, xb, Pb = x.copy(), P.copy(), x.copy(), P.copy()
+    Ka, Kb = np.empty((4, 4)), np.empty((4, 4))
+    oka = ukf_update(xa, Pa, Pxy, Pyy, nu, np.empty((4, 4)), Ka)
+    okb = ukf_update4(xb, Pb, Pxy, Pyy, nu, np.empty((4, 4)), Kb)
+    assert oka == okb
+    assert np.array_equal(xa, xb) and np.array_equal(Pa, Pb) and np.array_equal(Ka, Kb)

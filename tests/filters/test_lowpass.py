@@ -105,3 +105,28 @@ def test_exact_discretisation_is_stable_where_euler_is_not(rate: float) -> None:
     noise_adaptive_lowpass(prm, new_lowpass_state(), t, x, out, var)
     assert np.all(np.isfinite(out)) and float(np.max(np.abs(out))) < 3.5
     assert abs(float(out[-1]) - 3.0) < 1e-9
+
+
+@pytest.mark.parametrize("spread", [0.0, 1e-18, 2e-4])  # Δt exact, in its last bits, jittered
+def test_one_call_equals_sample_by_sample_calls_bit_for_bit(spread):
+    """A call keeps the tracker's coefficients of the last two intervals Δt (issue 27's
+    speed); sample-by-sample calls compute them afresh every time. Both must give the same
+    floats, whether Δt repeats exactly, alternates in its last bits (the time stamps of a
+    real log) or never repeats."""
+    rng = np.random.default_rng(7)
+    n = 600
+    t = np.cumsum(DT + spread * rng.standard_normal(n)) if spread else np.arange(n) * DT
+    x = np.sin(2.0 * np.pi * 0.7 * t) + 0.05 * rng.standard_normal(n)
+    x[100:103] = np.nan
+    out, var, var2 = np.empty(n), np.empty(n), np.empty(n)
+    noise_adaptive_lowpass(PRM, new_lowpass_state(), t, x, out, var)
+    noise_variance(PRM, new_lowpass_state(), t, x, var2)
+    one, onev, onev2 = np.empty(n), np.empty(n), np.empty(n)
+    st, st2 = new_lowpass_state(), new_lowpass_state()
+    for k in range(n):
+        noise_adaptive_lowpass(PRM, st, t[k:k + 1], x[k:k + 1], one[k:k + 1], onev[k:k + 1])
+        noise_variance(PRM, st2, t[k:k + 1], x[k:k + 1], onev2[k:k + 1])
+    assert np.array_equal(out, one, equal_nan=True)
+    assert np.array_equal(var, onev, equal_nan=True)
+    assert np.array_equal(var2, onev2, equal_nan=True)
+    assert np.array_equal(var, var2, equal_nan=True)  # the same tracker in both

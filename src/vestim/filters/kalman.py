@@ -35,7 +35,10 @@ arrays are passed in, as in :mod:`vestim.filters.linalg`):
   (= P − K P_yy Kᵀ), symmetrised. Without H the Joseph form cannot be written;
   it is for filters that evaluate the measurement at the sigma points (the
   papers' form ``ukf_rw`` of :mod:`vestim.estimators.force.longitudinal`, once
-  the force UKFs move here).
+  the force UKFs move here). :func:`ukf_update4` is the same update for 4 states and
+  4 measurements (the lateral force UKF) in constant-size loops, bit for bit equal;
+  a general update over run-time sizes made the force stage's kernels about twice as
+  slow (issue 27).
 
 Matrices are a few rows at most; plain loops beat LAPACK calls here by an order
 of magnitude. Nothing here knows about vehicles.
@@ -48,7 +51,7 @@ from typing import Any
 import numpy as np
 from numba import njit
 
-from vestim.filters.linalg import chol_solve, cholesky
+from vestim.filters.linalg import cholesky
 
 _JIT: dict[str, Any] = {"cache": True, "error_model": "numpy"}
 
@@ -129,8 +132,20 @@ def _gain_and_state(x: np.ndarray, S: np.ndarray, C: np.ndarray, nu: np.ndarray,
     the innovation covariance; L (m, m) its factor), then x̂ ← x̂ + K ν. Returns False when S
     needed the Cholesky pivot floor."""
     ok = cholesky(S, L)
+    m = S.shape[0]
     for i in range(x.shape[0]):
-        chol_solve(L, C[i], K[i])
+        # K[i] = S⁻¹ C[i]: chol_solve's forward and back substitutions, on the rows by
+        # index (a row view per state costs more than the solve at these sizes)
+        for a in range(m):
+            acc = C[i, a]
+            for b in range(a):
+                acc -= L[a, b] * K[i, b]
+            K[i, a] = acc / L[a, a]
+        for a in range(m - 1, -1, -1):
+            acc = K[i, a]
+            for b in range(a + 1, m):
+                acc -= L[b, a] * K[i, b]
+            K[i, a] = acc / L[a, a]
     for i in range(x.shape[0]):
         acc = x[i]
         for a in range(nu.shape[0]):
@@ -191,6 +206,43 @@ def ukf_update(x: np.ndarray, P: np.ndarray, Pxy: np.ndarray, Pyy: np.ndarray, n
             P[i, j] = acc
     for i in range(n):
         for j in range(i + 1, n):
+            v = 0.5 * (P[i, j] + P[j, i])
+            P[i, j] = v
+            P[j, i] = v
+    return ok
+
+
+@njit(**_JIT)
+def ukf_update4(x: np.ndarray, P: np.ndarray, Pxy: np.ndarray, Pyy: np.ndarray, nu: np.ndarray,
+                L: np.ndarray, K: np.ndarray) -> bool:
+    """:func:`ukf_update` for 4 states and 4 measurements: the same operations in the same
+    order (the same numbers, bit for bit), in loops of constant size that the compiler
+    unrolls. Arguments and result as there."""
+    ok = cholesky(Pyy, L)
+    for i in range(4):
+        for a in range(4):
+            acc = Pxy[i, a]
+            for b in range(a):
+                acc -= L[a, b] * K[i, b]
+            K[i, a] = acc / L[a, a]
+        for a in range(3, -1, -1):
+            acc = K[i, a]
+            for b in range(a + 1, 4):
+                acc -= L[b, a] * K[i, b]
+            K[i, a] = acc / L[a, a]
+    for i in range(4):
+        acc = x[i]
+        for a in range(4):
+            acc += K[i, a] * nu[a]
+        x[i] = acc
+    for i in range(4):
+        for j in range(4):
+            acc = P[i, j]
+            for a in range(4):
+                acc -= K[i, a] * Pxy[j, a]
+            P[i, j] = acc
+    for i in range(4):
+        for j in range(i + 1, 4):
             v = 0.5 * (P[i, j] + P[j, i])
             P[i, j] = v
             P[j, i] = v

@@ -88,9 +88,14 @@ def _propagate(e: float, d: float, w: float, dt: float, tracker: bool) -> tuple[
     e^(−ζω dt) [cos(ω_d dt) I + sin(ω_d dt)/ω_d (A + ζω I)], ω_d = ω √(1 − ζ²)."""
     s = ZETA * w
     wd = w * np.sqrt(1.0 - ZETA * ZETA)
-    decay = np.exp(-s * dt)
-    c = np.cos(wd * dt)
-    k = np.sin(wd * dt) / wd
+    return _apply(e, d, w, np.exp(-s * dt), np.cos(wd * dt), np.sin(wd * dt) / wd, tracker)
+
+
+@njit(**_JIT)
+def _apply(e: float, d: float, w: float, decay: float, c: float, k: float,
+           tracker: bool) -> tuple[float, float]:
+    """:func:`_propagate` from its coefficients e^(−ζω dt), cos(ω_d dt), sin(ω_d dt)/ω_d."""
+    s = ZETA * w
     if tracker:  # A + ζω I = [[−ζω, 1], [−ω², ζω]]
         return (decay * (c * e + k * (-s * e + d)),
                 decay * (c * d + k * (-w * w * e + s * d)))
@@ -109,28 +114,46 @@ def bandwidth(prm: LowpassParams, var: float, dt: float) -> float:
 
 
 @njit(**_JIT)
-def _noise(prm: LowpassParams, st: LowpassState, xk: float, dt: float) -> None:
-    """One sample of the noise's mean square ``st.var`` from the residual of the type-2
-    tracker ``st.h``, ``st.v`` at ``f_noise``; starts both on the first sample
-    (``st.started`` 0)."""
-    if st.started[0] == 0.0:
-        st.y[0] = xk
-        st.y_rate[0] = 0.0
-        st.h[0] = xk
-        st.v[0] = 0.0
-        st.var[0] = 0.0  # f_max until noise is seen (the mean square grows over tau_noise)
-        st.started[0] = 1.0
-    elif dt > 0.0:
-        w = 2.0 * np.pi * prm.f_noise
-        # The tracker over the interval with the previous sample held: its prediction, which
-        # x_k has not moved. White noise: E e² = σ² (1 + dt ω (1 + 4ζ²)/(4ζ)).
-        e, st.v[0] = _propagate(st.h[0] - st.x_prev[0], st.v[0], w, dt, True)
-        st.h[0] = st.x_prev[0] + e
-        r = xk - st.h[0]
-        lam = np.exp(-dt / prm.tau_noise)
-        gain = 1.0 + dt * w * (1.0 + 4.0 * ZETA * ZETA) / (4.0 * ZETA)
-        st.var[0] = lam * st.var[0] + (1.0 - lam) * r * r / gain
-    st.x_prev[0] = xk
+def _tracker_row(prm: LowpassParams, dt: float, cache: np.ndarray, slot: np.ndarray) -> int:
+    """The row of ``cache`` (2, 6) with the tracker's coefficients for the interval ``dt`` (s):
+    [Δt, e^(−ζω dt), cos(ω_d dt), sin(ω_d dt)/ω_d, λ = e^(−Δt/τ), the white-noise gain
+    1 + Δt ω (1 + 4ζ²)/(4ζ)], computed into row ``slot[0]`` (then the other) where neither
+    holds this Δt. A log's Δt alternates between a few values that differ in the time stamps'
+    last bits: two rows spare the four transcendentals for ≈ 99 % of the samples, and the
+    numbers are those computed afresh."""
+    if cache[0, 0] == dt:
+        return 0
+    if cache[1, 0] == dt:
+        return 1
+    i = slot[0]
+    slot[0] = 1 - i
+    w = 2.0 * np.pi * prm.f_noise
+    s = ZETA * w
+    wd = w * np.sqrt(1.0 - ZETA * ZETA)
+    cache[i, 0] = dt
+    cache[i, 1] = np.exp(-s * dt)
+    cache[i, 2] = np.cos(wd * dt)
+    cache[i, 3] = np.sin(wd * dt) / wd
+    cache[i, 4] = np.exp(-dt / prm.tau_noise)
+    cache[i, 5] = 1.0 + dt * w * (1.0 + 4.0 * ZETA * ZETA) / (4.0 * ZETA)
+    return i
+
+
+@njit(**_JIT)
+def _track(prm: LowpassParams, h: float, v: float, var: float, x_prev: float, xk: float,
+           dt: float, cache: np.ndarray, slot: np.ndarray) -> tuple[float, float, float]:
+    """One interval ``dt`` (s) of the type-2 tracker (h, v) at ``f_noise`` and the noise's mean
+    square ``var`` from its residual against the sample ``xk``; returns the new (h, v, var).
+    ``cache``, ``slot``: the call's :func:`_tracker_row`."""
+    w = 2.0 * np.pi * prm.f_noise
+    i = _tracker_row(prm, dt, cache, slot)
+    # The tracker over the interval with the previous sample held: its prediction, which
+    # x_k has not moved. White noise: E e² = σ² (1 + dt ω (1 + 4ζ²)/(4ζ)) (the gain).
+    e, v = _apply(h - x_prev, v, w, cache[i, 1], cache[i, 2], cache[i, 3], True)
+    h = x_prev + e
+    r = xk - h
+    lam = cache[i, 4]
+    return h, v, lam * var + (1.0 - lam) * r * r / cache[i, 5]
 
 
 @njit(**_JIT)
@@ -140,33 +163,63 @@ def noise_adaptive_lowpass(prm: LowpassParams, st: LowpassState, t: np.ndarray,
     (:class:`LowpassState`); the first finite sample starts the filter at rest on it.
     ``var_out`` (n,): the measured noise variance σ̂² per sample of ``x`` (see
     :func:`noise_variance`). The noise left in ``out`` is about σ̂² dt ω_n/(4ζ) (white noise
-    of two-sided density σ̂² dt through the section, whose ∫|H|² df is ω_n/(4ζ))."""
+    of two-sided density σ̂² dt through the section, whose ∫|H|² df is ω_n/(4ζ)).
+
+    The state is read into scalars once per call and written back at its end (a field of
+    ``st`` read per sample costs a reference count each, more than the filter's own work)."""
+    y, y_rate, h, v, var = st.y[0], st.y_rate[0], st.h[0], st.v[0], st.var[0]
+    t_prev, started, x_prev = st.t_prev[0], st.started[0], st.x_prev[0]
+    cache = np.full((2, 6), np.nan)
+    slot = np.zeros(1, dtype=np.int64)
     for k in range(x.shape[0]):
         xk = x[k]
         if np.isnan(xk):
             out[k] = np.nan
             var_out[k] = np.nan
             continue
-        dt = t[k] - st.t_prev[0] if st.started[0] != 0.0 else 0.0
-        _noise(prm, st, xk, dt)
+        dt = t[k] - t_prev if started != 0.0 else 0.0
+        if started == 0.0:  # start both sections on the first sample
+            y, y_rate, h, v = xk, 0.0, xk, 0.0
+            var = 0.0  # f_max until noise is seen (the mean square grows over tau_noise)
+            started = 1.0
+        elif dt > 0.0:
+            h, v, var = _track(prm, h, v, var, x_prev, xk, dt, cache, slot)
+        x_prev = xk
         if dt > 0.0:
-            e, st.y_rate[0] = _propagate(st.y[0] - xk, st.y_rate[0],
-                                         bandwidth(prm, st.var[0], dt), dt, False)
-            st.y[0] = xk + e
-        st.t_prev[0] = t[k]
-        out[k] = st.y[0]
-        var_out[k] = st.var[0]
+            e, y_rate = _propagate(y - xk, y_rate, bandwidth(prm, var, dt), dt, False)
+            y = xk + e
+        t_prev = t[k]
+        out[k] = y
+        var_out[k] = var
+    st.y[0], st.y_rate[0], st.h[0], st.v[0], st.var[0] = y, y_rate, h, v, var
+    st.t_prev[0], st.started[0], st.x_prev[0] = t_prev, started, x_prev
 
 
 @njit(**_JIT)
 def noise_variance(prm: LowpassParams, st: LowpassState, t: np.ndarray, x: np.ndarray,
                    var_out: np.ndarray) -> None:
     """The noise variance per sample σ̂² of ``x`` (n,) into ``var_out`` (n,) (the mean square
-    above ``f_noise``; NaN at NaN samples), in place on ``st`` (:class:`LowpassState`)."""
+    above ``f_noise``; NaN at NaN samples), in place on ``st`` (:class:`LowpassState`; the
+    output section's y, y_rate are started, not run). The state is held in scalars over the
+    call, as in :func:`noise_adaptive_lowpass`."""
+    y, y_rate, h, v, var = st.y[0], st.y_rate[0], st.h[0], st.v[0], st.var[0]
+    t_prev, started, x_prev = st.t_prev[0], st.started[0], st.x_prev[0]
+    cache = np.full((2, 6), np.nan)
+    slot = np.zeros(1, dtype=np.int64)
     for k in range(x.shape[0]):
-        if np.isnan(x[k]):
+        xk = x[k]
+        if np.isnan(xk):
             var_out[k] = np.nan
             continue
-        _noise(prm, st, x[k], t[k] - st.t_prev[0] if st.started[0] != 0.0 else 0.0)
-        st.t_prev[0] = t[k]
-        var_out[k] = st.var[0]
+        dt = t[k] - t_prev if started != 0.0 else 0.0
+        if started == 0.0:
+            y, y_rate, h, v = xk, 0.0, xk, 0.0
+            var = 0.0
+            started = 1.0
+        elif dt > 0.0:
+            h, v, var = _track(prm, h, v, var, x_prev, xk, dt, cache, slot)
+        x_prev = xk
+        t_prev = t[k]
+        var_out[k] = var
+    st.y[0], st.y_rate[0], st.h[0], st.v[0], st.var[0] = y, y_rate, h, v, var
+    st.t_prev[0], st.started[0], st.x_prev[0] = t_prev, started, x_prev

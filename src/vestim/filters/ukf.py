@@ -21,7 +21,7 @@ from typing import Any
 import numpy as np
 from numba import njit
 
-from vestim.filters.linalg import cholesky
+from vestim.filters.linalg import JITTER, cholesky
 
 _JIT: dict[str, Any] = {"cache": True, "error_model": "numpy"}
 
@@ -62,6 +62,114 @@ def sigma_points(x: np.ndarray, P: np.ndarray, tau: float, L: np.ndarray, out: n
         for j in range(n):
             out[1 + i, j] = x[j] + tau * L[j, i]
             out[1 + n + i, j] = x[j] - tau * L[j, i]
+
+
+@njit(**_JIT)
+def sigma_points2(x0: float, x1: float, p00: float, p10: float, p11: float, tau: float,
+                  out: np.ndarray) -> None:
+    """:func:`sigma_points` for N = 2 written out, as :func:`sigma_points3` (the same
+    numbers bit for bit). ``out`` (5, 2)."""
+    scale = max(max(0.0, abs(p00)), abs(p11))
+    floor = JITTER * scale if scale > 0.0 else JITTER
+    s = p00
+    if not s > floor:
+        s = floor
+    l00 = math.sqrt(s)
+    l10 = p10 / l00
+    s = p11 - l10 * l10
+    if not s > floor:
+        s = floor
+    l11 = math.sqrt(s)
+    a00, a10, a11 = tau * l00, tau * l10, tau * l11
+    zero = tau * 0.0
+    out[0, 0], out[0, 1] = x0, x1
+    out[1, 0], out[1, 1] = x0 + a00, x1 + a10
+    out[2, 0], out[2, 1] = x0 + zero, x1 + a11
+    out[3, 0], out[3, 1] = x0 - a00, x1 - a10
+    out[4, 0], out[4, 1] = x0 - zero, x1 - a11
+
+
+@njit(**_JIT)
+def sigma_points3(x0: float, x1: float, x2: float, p00: float, p10: float, p11: float,
+                  p20: float, p21: float, p22: float, tau: float, out: np.ndarray) -> None:
+    """:func:`sigma_points` for N = 3 from the state's components and P's lower triangle,
+    written out: the same operations in the same order (so the same numbers, bit for bit:
+    the Cholesky factor of :func:`vestim.filters.linalg.cholesky` with its pivot floor, the
+    zero entries of L added as +0.0), without the loops over a run-time size or the views of
+    a state array. ``out`` (7, 3)."""
+    scale = max(max(max(0.0, abs(p00)), abs(p11)), abs(p22))
+    floor = JITTER * scale if scale > 0.0 else JITTER
+    s = p00
+    if not s > floor:
+        s = floor
+    l00 = math.sqrt(s)
+    l10 = p10 / l00
+    l20 = p20 / l00
+    s = p11 - l10 * l10
+    if not s > floor:
+        s = floor
+    l11 = math.sqrt(s)
+    l21 = (p21 - l20 * l10) / l11
+    s = p22 - l20 * l20 - l21 * l21
+    if not s > floor:
+        s = floor
+    l22 = math.sqrt(s)
+    a00, a10, a20 = tau * l00, tau * l10, tau * l20
+    a11, a21, a22 = tau * l11, tau * l21, tau * l22
+    zero = tau * 0.0
+    out[0, 0], out[0, 1], out[0, 2] = x0, x1, x2
+    out[1, 0], out[1, 1], out[1, 2] = x0 + a00, x1 + a10, x2 + a20
+    out[2, 0], out[2, 1], out[2, 2] = x0 + zero, x1 + a11, x2 + a21
+    out[3, 0], out[3, 1], out[3, 2] = x0 + zero, x1 + zero, x2 + a22
+    out[4, 0], out[4, 1], out[4, 2] = x0 - a00, x1 - a10, x2 - a20
+    out[5, 0], out[5, 1], out[5, 2] = x0 - zero, x1 - a11, x2 - a21
+    out[6, 0], out[6, 1], out[6, 2] = x0 - zero, x1 - zero, x2 - a22
+
+
+@njit(**_JIT)
+def sigma_points4(x: np.ndarray, P: np.ndarray, tau: float, out: np.ndarray) -> None:
+    """:func:`sigma_points` for N = 4 written out, as :func:`sigma_points3`: the same numbers
+    bit for bit from x (4,) and P's lower triangle (4, 4), without a factor array or loops
+    over a run-time size. ``out`` (9, 4)."""
+    p00, p11, p22, p33 = P[0, 0], P[1, 1], P[2, 2], P[3, 3]
+    scale = max(max(max(max(0.0, abs(p00)), abs(p11)), abs(p22)), abs(p33))
+    floor = JITTER * scale if scale > 0.0 else JITTER
+    s = p00
+    if not s > floor:
+        s = floor
+    l00 = math.sqrt(s)
+    l10 = P[1, 0] / l00
+    l20 = P[2, 0] / l00
+    l30 = P[3, 0] / l00
+    s = p11 - l10 * l10
+    if not s > floor:
+        s = floor
+    l11 = math.sqrt(s)
+    l21 = (P[2, 1] - l20 * l10) / l11
+    l31 = (P[3, 1] - l30 * l10) / l11
+    s = p22 - l20 * l20 - l21 * l21
+    if not s > floor:
+        s = floor
+    l22 = math.sqrt(s)
+    l32 = (P[3, 2] - l30 * l20 - l31 * l21) / l22
+    s = p33 - l30 * l30 - l31 * l31 - l32 * l32
+    if not s > floor:
+        s = floor
+    l33 = math.sqrt(s)
+    x0, x1, x2, x3 = x[0], x[1], x[2], x[3]
+    a00, a10, a20, a30 = tau * l00, tau * l10, tau * l20, tau * l30
+    a11, a21, a31 = tau * l11, tau * l21, tau * l31
+    a22, a32, a33 = tau * l22, tau * l32, tau * l33
+    zero = tau * 0.0
+    out[0, 0], out[0, 1], out[0, 2], out[0, 3] = x0, x1, x2, x3
+    out[1, 0], out[1, 1], out[1, 2], out[1, 3] = x0 + a00, x1 + a10, x2 + a20, x3 + a30
+    out[2, 0], out[2, 1], out[2, 2], out[2, 3] = x0 + zero, x1 + a11, x2 + a21, x3 + a31
+    out[3, 0], out[3, 1], out[3, 2], out[3, 3] = x0 + zero, x1 + zero, x2 + a22, x3 + a32
+    out[4, 0], out[4, 1], out[4, 2], out[4, 3] = x0 + zero, x1 + zero, x2 + zero, x3 + a33
+    out[5, 0], out[5, 1], out[5, 2], out[5, 3] = x0 - a00, x1 - a10, x2 - a20, x3 - a30
+    out[6, 0], out[6, 1], out[6, 2], out[6, 3] = x0 - zero, x1 - a11, x2 - a21, x3 - a31
+    out[7, 0], out[7, 1], out[7, 2], out[7, 3] = x0 - zero, x1 - zero, x2 - a22, x3 - a32
+    out[8, 0], out[8, 1], out[8, 2], out[8, 3] = x0 - zero, x1 - zero, x2 - zero, x3 - a33
 
 
 @njit(**_JIT)

@@ -65,8 +65,8 @@ from typing import Any, NamedTuple
 import numpy as np
 from numba import njit
 
-from vestim.filters.kalman import ukf_update
-from vestim.filters.ukf import sigma_points, weighted_cross, weighted_mean
+from vestim.filters.kalman import ukf_update4
+from vestim.filters.ukf import sigma_points4
 from vestim.params import check_ranges
 
 _JIT: dict[str, Any] = {"cache": True, "error_model": "numpy"}
@@ -174,30 +174,27 @@ def split_weights(fz: np.ndarray, omega: np.ndarray, torque: np.ndarray, yaw_rat
 
 
 @njit(**_JIT)
-def _body_forces(x: np.ndarray, fx: np.ndarray, cd: np.ndarray, sd: np.ndarray, rear_w: float,
-                 xw: np.ndarray, yw: np.ndarray) -> tuple[float, float, float]:
-    """(ΣF_x, ΣF_y, M_z) in the body frame for state x and tire-frame F_x per corner (001 eq. (9)).
+def _yaw_moment(fyf: float, fyr: float, dfyf: float, fc: np.ndarray, fs: np.ndarray,
+                cd: np.ndarray, sd: np.ndarray, rear_w: float, xw: np.ndarray,
+                yw: np.ndarray) -> float:
+    """Yaw moment M_z (N m) about the CG of the state's lateral forces [F_yf, F_yr, F̄_yf] and
+    each corner's tire-frame F_x, rotated by its steering angle (001 eq. (9)):
+    M_z = Σ_i x_i F_yb,i − y_i F_xb,i with F_xb = F_x cos δ − F_y sin δ,
+    F_yb = F_x sin δ + F_y cos δ.
 
-    ``cd``, ``sd``: cos and sin of each corner's steering angle (computed once per sample).
+    ``fc``, ``fs``: F_x cos δ and F_x sin δ per corner, ``cd``, ``sd``: cos δ and sin δ
+    (computed once per sample, shared by the sigma points); ``rear_w`` the rear-left share.
     """
-    sx = 0.0
-    sy = 0.0
+    fy0 = 0.5 * (fyf - dfyf)
+    fy1 = 0.5 * (fyf + dfyf)
+    fy2 = rear_w * fyr
+    fy3 = (1.0 - rear_w) * fyr
     mz = 0.0
-    for i in range(4):
-        if i == 0:
-            fy = 0.5 * (x[FYF] - x[DFYF])
-        elif i == 1:
-            fy = 0.5 * (x[FYF] + x[DFYF])
-        elif i == 2:
-            fy = rear_w * x[FYR]
-        else:
-            fy = (1.0 - rear_w) * x[FYR]
-        fxb = fx[i] * cd[i] - fy * sd[i]
-        fyb = fx[i] * sd[i] + fy * cd[i]
-        sx += fxb
-        sy += fyb
-        mz += xw[i] * fyb - yw[i] * fxb
-    return sx, sy, mz
+    mz += xw[0] * (fs[0] + fy0 * cd[0]) - yw[0] * (fc[0] - fy0 * sd[0])
+    mz += xw[1] * (fs[1] + fy1 * cd[1]) - yw[1] * (fc[1] - fy1 * sd[1])
+    mz += xw[2] * (fs[2] + fy2 * cd[2]) - yw[2] * (fc[2] - fy2 * sd[2])
+    mz += xw[3] * (fs[3] + fy3 * cd[3]) - yw[3] * (fc[3] - fy3 * sd[3])
+    return mz
 
 
 class LateralKernelParams(NamedTuple):
@@ -281,29 +278,36 @@ def lateral_kernel(p: LateralKernelParams, s: LateralState, t: np.ndarray, fx: n
     mass, iz, xw, yw, q, r_diag = p.mass, p.iz, p.xw, p.yw, p.q, p.r_diag
     wm, wc, tau = p.wm, p.wc, p.tau
     x, P = s.x, s.P
+    t_prev, started, fx_prev, delta_prev = s.t_prev, s.started, s.fx_prev, s.delta_prev
+    nu_balance, nu_yaw, walk_factor = s.nu_balance, s.nu_yaw, s.walk_factor
+    fy_offset, elapsed = s.fy_offset, s.elapsed
     n = t.shape[0]
     npts = 2 * N_X + 1
+    # Work arrays, once per call.
     pts = np.empty((npts, N_X))
+    dev = np.empty((npts, N_X))
     xm = np.empty(N_X)
     ym = np.empty(N_Y)
     Pm = np.empty((N_X, N_X))
     Pyy = np.empty((N_Y, N_Y))
     Pxy = np.empty((N_X, N_Y))
-    L = np.empty((N_X, N_X))
     Ly = np.empty((N_Y, N_Y))
     K = np.empty((N_X, N_Y))
     H = np.empty((N_Y, N_X))
     cd_now = np.empty(4)
     sd_now = np.empty(4)
-    cd_prev = np.cos(s.delta_prev)
-    sd_prev = np.sin(s.delta_prev)
+    cd_prev = np.cos(delta_prev)  # cos and sin of the held angles, carried from sample to sample
+    sd_prev = np.sin(delta_prev)
+    fc_prev = np.empty(4)  # the held F_x times cos δ and sin δ
+    fs_prev = np.empty(4)
     y = np.empty(N_Y)
     for k in range(n):
         wr_sum = weights[k, 2] + weights[k, 3]
         rear_w = weights[k, 2] / wr_sum if wr_sum > 0 else 0.5
         wf_sum = weights[k, 0] + weights[k, 1]
         rho = (weights[k, 1] - weights[k, 0]) / wf_sum if wf_sum > 0 else 0.0
-        if s.started[0] == 0.0:
+        fresh = started[0] == 0.0
+        if fresh:
             x[:] = 0.0
             x[YAW] = yaw_rate[k]
             P[:, :] = 0.0
@@ -311,24 +315,40 @@ def lateral_kernel(p: LateralKernelParams, s: LateralState, t: np.ndarray, fx: n
             P[FYR, FYR] = 1.0e6
             P[DFYF, DFYF] = 1.0e5
             P[YAW, YAW] = r_diag[2]
-            s.started[0] = 1.0
-            s.nu_balance[0] = 0.0
-            s.nu_yaw[0] = 0.0
-            s.walk_factor[0] = 1.0
-            s.fy_offset[0] = 0.0
-            s.elapsed[0] = 0.0
+            started[0] = 1.0
+            nu_balance[0] = 0.0
+            nu_yaw[0] = 0.0
+            walk_factor[0] = 1.0
+            fy_offset[0] = 0.0
+            elapsed[0] = 0.0
         else:
-            dt = t[k] - s.t_prev[0]
-            s.elapsed[0] += dt
+            dt = t[k] - t_prev[0]
+            elapsed[0] += dt
             # Prediction: forces random walk, yaw rate by the yaw moment (001 eq. (9)).
-            sigma_points(x, P, tau, L, pts)
+            sigma_points4(x, P, tau, pts)
+            for i in range(4):
+                fc_prev[i] = fx_prev[i] * cd_prev[i]
+                fs_prev[i] = fx_prev[i] * sd_prev[i]
             for i in range(npts):
-                _, _, mz = _body_forces(pts[i], s.fx_prev, cd_prev, sd_prev, rear_w, xw, yw)
+                mz = _yaw_moment(pts[i, FYF], pts[i, FYR], pts[i, DFYF], fc_prev, fs_prev,
+                                 cd_prev, sd_prev, rear_w, xw, yw)
                 pts[i, YAW] += dt * mz / iz
-            weighted_mean(pts, wm, xm)
-            weighted_cross(pts, xm, pts, xm, wc, Pm)
+            for j in range(N_X):  # 000 eq. (11): the weighted mean and covariance
+                acc = 0.0
+                for i in range(npts):
+                    acc += wm[i] * pts[i, j]
+                xm[j] = acc
+            for i in range(npts):
+                for j in range(N_X):
+                    dev[i, j] = pts[i, j] - xm[j]
+            for r in range(N_X):
+                for c2 in range(N_X):
+                    acc = 0.0
+                    for i in range(npts):
+                        acc += wc[i] * dev[i, r] * dev[i, c2]
+                    Pm[r, c2] = acc
             for j in range(N_X):
-                Pm[j, j] += q[j] * dt * (s.walk_factor[0] if j < 2 else 1.0)
+                Pm[j, j] += q[j] * dt * (walk_factor[0] if j < 2 else 1.0)
             # Update with [m f_x + drag, m f_y, r, 0]. The measurement is affine in
             # the state, y = H x + h0, so the sigma-point sums of the update equal
             # H P̄ Hᵀ and P̄ Hᵀ exactly; they are evaluated in that closed form.
@@ -374,7 +394,7 @@ def lateral_kernel(p: LateralKernelParams, s: LateralState, t: np.ndarray, fx: n
             Pyy[2, 2] += max(r_diag[2], noise[3, k])
             Pyy[3, 3] += r_diag[3]
             y[0] = mass * f_x[k] + drag[k] - ym[0]
-            y[1] = mass * (f_y[k] - s.fy_offset[0]) - ym[1]
+            y[1] = mass * (f_y[k] - fy_offset[0]) - ym[1]
             y[2] = yaw_rate[k] - ym[2]
             y[3] = -ym[3]
             if p.split_c0 > 0.0:
@@ -401,13 +421,13 @@ def lateral_kernel(p: LateralKernelParams, s: LateralState, t: np.ndarray, fx: n
             # drift, and the intensity grows as 1 + (ν̄/ν_0)² (capped) for the next step.
             if p.adapt_tau > 0.0:
                 a_nu = min(dt / p.adapt_tau, 1.0)
-                s.nu_balance[0] += a_nu * (y[1] / np.sqrt(Pyy[1, 1]) - s.nu_balance[0])
-                s.nu_yaw[0] += a_nu * (y[2] / np.sqrt(Pyy[2, 2]) - s.nu_yaw[0])
-                nu2 = max(s.nu_balance[0] * s.nu_balance[0], s.nu_yaw[0] * s.nu_yaw[0])
-                s.walk_factor[0] = min(1.0 + nu2 / (p.adapt_nu * p.adapt_nu), p.adapt_cap)
+                nu_balance[0] += a_nu * (y[1] / np.sqrt(Pyy[1, 1]) - nu_balance[0])
+                nu_yaw[0] += a_nu * (y[2] / np.sqrt(Pyy[2, 2]) - nu_yaw[0])
+                nu2 = max(nu_balance[0] * nu_balance[0], nu_yaw[0] * nu_yaw[0])
+                walk_factor[0] = min(1.0 + nu2 / (p.adapt_nu * p.adapt_nu), p.adapt_cap)
             x[:] = xm
             P[:, :] = Pm
-            ukf_update(x, P, Pxy, Pyy, y, Ly, K)  # K = Pxy Pyy⁻¹, x̂ += K ν, P −= K Pxyᵀ
+            ukf_update4(x, P, Pxy, Pyy, y, Ly, K)  # K = Pxy Pyy⁻¹, x̂ += K ν, P −= K Pxyᵀ
         if p.bias_tau > 0.0:
             # Offset of the lateral balance: f_y − r v_x is the sideslip acceleration v̇_y,
             # zero on average, plus what the attitude filter leaks into f_y at low
@@ -415,16 +435,20 @@ def lateral_kernel(p: LateralKernelParams, s: LateralState, t: np.ndarray, fx: n
             # its running mean (memory min(max(elapsed, 1 s), bias_tau)) is removed.
             # A slide (sustained v̇_y) or a spinning wheel in the speed reference makes
             # f_y − r v large: a Cauchy weight (scale ``bias_scale``) leaves such samples out.
-            mem = min(max(s.elapsed[0], 1.0), p.bias_tau)
-            g_b = min((t[k] - s.t_prev[0]) / mem if s.elapsed[0] > 0.0 else 0.0, 1.0)
-            e_b = f_y[k] - yaw_rate[k] * speed[k] - s.fy_offset[0]
-            s.fy_offset[0] += g_b * e_b / (1.0 + (e_b / p.bias_scale) ** 2)
-        s.t_prev[0] = t[k]
-        s.fx_prev[:] = fx[k]  # held over the next interval
-        s.delta_prev[:] = delta[k]
-        for i in range(4):
-            cd_prev[i] = np.cos(delta[k, i])
-            sd_prev[i] = np.sin(delta[k, i])
+            mem = min(max(elapsed[0], 1.0), p.bias_tau)
+            g_b = min((t[k] - t_prev[0]) / mem if elapsed[0] > 0.0 else 0.0, 1.0)
+            e_b = f_y[k] - yaw_rate[k] * speed[k] - fy_offset[0]
+            fy_offset[0] += g_b * e_b / (1.0 + (e_b / p.bias_scale) ** 2)
+        t_prev[0] = t[k]
+        for i in range(4):  # held over the next interval
+            fx_prev[i] = fx[k, i]
+            delta_prev[i] = delta[k, i]
+            if fresh:
+                cd_prev[i] = np.cos(delta[k, i])
+                sd_prev[i] = np.sin(delta[k, i])
+            else:  # this sample's, computed for its update
+                cd_prev[i] = cd_now[i]
+                sd_prev[i] = sd_now[i]
         fy_out[k, 0] = 0.5 * (x[FYF] - x[DFYF])
         fy_out[k, 1] = 0.5 * (x[FYF] + x[DFYF])
         fy_out[k, 2] = rear_w * x[FYR]

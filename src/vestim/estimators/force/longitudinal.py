@@ -32,7 +32,7 @@ import numpy as np
 from numba import njit
 
 from vestim.estimators.registry import register, registered
-from vestim.filters.ukf import sigma_points, ukf_weights
+from vestim.filters.ukf import sigma_points2, sigma_points3, ukf_weights
 from vestim.io.vehicle import Vehicle
 from vestim.params import check_ranges, pack
 
@@ -146,7 +146,6 @@ def ukf_rw_kernel(p: LongitudinalParams, s: LongitudinalState, t: np.ndarray, om
     pts = np.empty((5, 2))
     xm = np.empty(2)
     Pm = np.empty((2, 2))
-    L = np.empty((2, 2))
     for k in range(n):
         if np.isnan(hist_t[0]):
             for c in range(4):
@@ -167,7 +166,7 @@ def ukf_rw_kernel(p: LongitudinalParams, s: LongitudinalState, t: np.ndarray, om
             is_high = abs(_omega_dot(hist_t, hist_w, t[k], omega[k, c], c)) > omega_dot_high
             q_f = q_force_high if is_high else q_force
             # Prediction through the wheel dynamics: sigma points of (x, P).
-            sigma_points(x[c], P[c], tau, L, pts)
+            sigma_points2(x[c, W], x[c, F], P[c, 0, 0], P[c, 1, 0], P[c, 1, 1], tau, pts)
             for i in range(5):
                 pts[i, W] = pts[i, W] + dt / iw * (prev_torque[c] - radius * pts[i, F])
             xm[0] = 0.0
@@ -186,7 +185,7 @@ def ukf_rw_kernel(p: LongitudinalParams, s: LongitudinalState, t: np.ndarray, om
             Pm[0, 0] += (dt / iw) ** 2 * r_torque
             Pm[1, 1] += q_f * dt
             # Measurement update with the wheel speed.
-            sigma_points(xm, Pm, tau, L, pts)
+            sigma_points2(xm[0], xm[1], Pm[0, 0], Pm[1, 0], Pm[1, 1], tau, pts)
             zhat = 0.0
             for i in range(5):
                 zhat += wm[i] * pts[i, W]
@@ -211,7 +210,7 @@ def ukf_rw_kernel(p: LongitudinalParams, s: LongitudinalState, t: np.ndarray, om
             sigma[k, c] = np.sqrt(max(P[c, 1, 1], 0.0))
             high[k, c] = is_high
             prev_torque[c] = torque[k, c]
-        _push(hist_t, hist_w, t[k], omega[k])
+        _push(hist_t, hist_w, t, omega, k)
 
 
 @njit(**_JIT)
@@ -231,16 +230,18 @@ def _omega_dot(hist_t: np.ndarray, hist_w: np.ndarray, tk: float, wk: float, c: 
 
 
 @njit(**_JIT)
-def _push(hist_t: np.ndarray, hist_w: np.ndarray, tk: float, wk: np.ndarray) -> None:
-    """Shift the (time, ω) history by one sample and append the newest."""
+def _push(hist_t: np.ndarray, hist_w: np.ndarray, t: np.ndarray, omega: np.ndarray,
+          k: int) -> None:
+    """Shift the (time, ω) history by one sample and append sample k of t (n,), omega (n, 4)
+    (indexed here: a row view per sample costs a reference count)."""
     m = hist_t.shape[0]
     for j in range(m - 1):
         hist_t[j] = hist_t[j + 1]
         for c in range(4):
             hist_w[j, c] = hist_w[j + 1, c]
-    hist_t[m - 1] = tk
+    hist_t[m - 1] = t[k]
     for c in range(4):
-        hist_w[m - 1, c] = wk[c]
+        hist_w[m - 1, c] = omega[k, c]
 
 
 # ---------------------------------------------------- UKF on [ω, ω̇, T] (default)
@@ -256,14 +257,6 @@ UKF_COLS = 14
 # 1/f(median) of log|N(0, 1)| (its density at the median, 0.4287), for 1/k convergence.
 _D2_MEDIAN = 0.6744897501960817 * 2.449489742783178
 _LOG_GAIN = 1.0 / 0.4287
-
-
-@njit(**_JIT)
-def _track_log_scale(log_m: float, d: float, gain: float) -> float:
-    """One step of the stochastic-approximation median of |d| (in the log): log m moves
-    up by gain/2 when |d| > m and down by gain/2 otherwise, so it settles where half
-    the samples lie above: the median, unmoved by a minority of large values."""
-    return log_m + (0.5 * gain if abs(d) > np.exp(log_m) else -0.5 * gain)
 
 
 class UKFKernelParams(NamedTuple):
@@ -360,14 +353,19 @@ def ukf_kernel(t: np.ndarray, omega: np.ndarray, torque: np.ndarray, prm: UKFKer
     resolve_time, q_torque_switched = prm.resolve_time, prm.q_torque_switched
     n = t.shape[0]
     m = hist_t.shape[0]
-    npts = 7
-    pts = np.empty((npts, 3))
+    # Work arrays, once per call: the 7 sigma points (propagated), their deviations from
+    # the predicted mean, the predicted mean and covariance.
+    pts = np.empty((7, 3))
+    dev = np.empty((7, 3))
     xm = np.empty(3)
     Pm = np.empty((3, 3))
-    L = np.empty((3, 3))
-    zhat = np.empty(2)
-    pzz = np.empty((2, 2))
-    pxz = np.empty((3, 2))
+    # exp of each corner's tracked log scales x[c, X_LW], x[c, X_LT], refreshed whenever
+    # those change: each is then evaluated once per sample, not twice.
+    e_w = np.empty(4)
+    e_t = np.empty(4)
+    for c in range(4):
+        e_w[c] = np.exp(x[c, X_LW])
+        e_t[c] = np.exp(x[c, X_LT])
     sd_mean = np.sqrt(innov_alpha / (2.0 - innov_alpha))
     log_w_min = np.log(_D2_MEDIAN * sigma_omega_min)
     log_t_min = np.log(_D2_MEDIAN * sigma_torque_min)
@@ -381,6 +379,8 @@ def ukf_kernel(t: np.ndarray, omega: np.ndarray, torque: np.ndarray, prm: UKFKer
                 x[c, X_SW] = 0.0
                 x[c, X_LW] = np.log(_D2_MEDIAN * np.sqrt(r_omega))
                 x[c, X_LT] = np.log(_D2_MEDIAN * np.sqrt(r_torque))
+                e_w[c] = np.exp(x[c, X_LW])
+                e_t[c] = np.exp(x[c, X_LT])
                 x[c, X_W1] = omega[k, c]
                 x[c, X_W2] = omega[k, c]
                 x[c, X_T1] = torque[k, c]
@@ -399,22 +399,29 @@ def ukf_kernel(t: np.ndarray, omega: np.ndarray, torque: np.ndarray, prm: UKFKer
             continue
         dt = t[k] - hist_t[m - 1]
         for c in range(4):
-            # Online noise levels from second differences (needs two previous samples).
+            # Online noise levels from second differences (needs two previous samples):
+            # each log scale log m moves up by gain/2 when |Δ²z| > m and down by gain/2
+            # otherwise, so it settles where half the samples lie above: the median,
+            # unmoved by a minority of large values (stochastic approximation).
             seen = x[c, X_N] + 1.0
             x[c, X_N] = seen
             if noise_online and seen >= 2.0:
-                gain = max(_LOG_GAIN / (seen - 1.0 + noise_prior_n), noise_gain_min)
-                x[c, X_LW] = max(_track_log_scale(
-                    x[c, X_LW], omega[k, c] - 2.0 * x[c, X_W1] + x[c, X_W2], gain), log_w_min)
-                x[c, X_LT] = max(_track_log_scale(
-                    x[c, X_LT], torque[k, c] - 2.0 * x[c, X_T1] + x[c, X_T2], gain), log_t_min)
+                half = 0.5 * max(_LOG_GAIN / (seen - 1.0 + noise_prior_n), noise_gain_min)
+                d_w = omega[k, c] - 2.0 * x[c, X_W1] + x[c, X_W2]
+                x[c, X_LW] = max(x[c, X_LW] + (half if abs(d_w) > e_w[c] else -half),
+                                 log_w_min)
+                e_w[c] = np.exp(x[c, X_LW])
+                d_t = torque[k, c] - 2.0 * x[c, X_T1] + x[c, X_T2]
+                x[c, X_LT] = max(x[c, X_LT] + (half if abs(d_t) > e_t[c] else -half),
+                                 log_t_min)
+                e_t[c] = np.exp(x[c, X_LT])
             x[c, X_W2] = x[c, X_W1]
             x[c, X_W1] = omega[k, c]
             x[c, X_T2] = x[c, X_T1]
             x[c, X_T1] = torque[k, c]
             if noise_online:
-                s_w = np.exp(x[c, X_LW]) / _D2_MEDIAN
-                s_t = np.exp(x[c, X_LT]) / _D2_MEDIAN
+                s_w = e_w[c] / _D2_MEDIAN
+                s_t = e_t[c] / _D2_MEDIAN
                 r_w = s_w * s_w
                 r_t = s_t * s_t
             else:
@@ -429,18 +436,25 @@ def ukf_kernel(t: np.ndarray, omega: np.ndarray, torque: np.ndarray, prm: UKFKer
             # With it, steps and ramps are the switch's, the walk only the slow drift.
             q_t = q_torque_switched if torque_switch else q_torque * r_t / r_torque
             is_high = abs(_omega_dot(hist_t, hist_w, t[k], omega[k, c], c)) > omega_dot_high
-            sigma_points(x[c, :3], P[c], tau, L, pts)
-            for i in range(npts):
+            # Prediction by the sigma points of (x, P) (000 eq. (10)–(11)): ω += Δt ω̇.
+            sigma_points3(x[c, A_W], x[c, A_A], x[c, A_T], P[c, 0, 0], P[c, 1, 0],
+                          P[c, 1, 1], P[c, 2, 0], P[c, 2, 1], P[c, 2, 2], tau, pts)
+            for i in range(7):
                 pts[i, A_W] += dt * pts[i, A_A]
-            xm[:] = 0.0
-            for i in range(npts):
+            for j in range(3):
+                acc = 0.0
+                for i in range(7):
+                    acc += wm[i] * pts[i, j]
+                xm[j] = acc
+            for i in range(7):
                 for j in range(3):
-                    xm[j] += wm[i] * pts[i, j]
-            Pm[:, :] = 0.0
-            for i in range(npts):
-                for r in range(3):
-                    for q in range(3):
-                        Pm[r, q] += wc[i] * (pts[i, r] - xm[r]) * (pts[i, q] - xm[q])
+                    dev[i, j] = pts[i, j] - xm[j]
+            for r in range(3):
+                for q in range(3):
+                    acc = 0.0
+                    for i in range(7):
+                        acc += wc[i] * dev[i, r] * dev[i, q]
+                    Pm[r, q] = acc
             q_a = q_acc_high if is_high else q_acc
             was_innov = x[c, X_SW] > 0.5
             if was_innov:
@@ -470,33 +484,26 @@ def ukf_kernel(t: np.ndarray, omega: np.ndarray, torque: np.ndarray, prm: UKFKer
                     Pm[A_T, A_T] -= q_t * dt
                     _add_torque_step(Pm, q_torque_innov * dt, innov_torque_share, iw)
             x[c, X_TSW] = 1.0 if now_torque else 0.0
-            # Update with [ω, T]. The measurement selects state components, so the
+            # Update with z = [ω, T]. The measurement selects state components, so the
             # sigma-point sums of 000 eq. (11) equal the blocks of P̄ exactly
-            # (Σ W^c (χ − x̄)(χ − x̄)ᵀ = P̄ for these weights): evaluated in closed form.
-            zhat[0] = xm[A_W]
-            zhat[1] = xm[A_T]
-            pzz[0, 0] = Pm[A_W, A_W]
-            pzz[0, 1] = Pm[A_W, A_T]
-            pzz[1, 1] = Pm[A_T, A_T]
+            # (Σ W^c (χ − x̄)(χ − x̄)ᵀ = P̄ for these weights): ẑ = [ω̄, T̄],
+            # P_zz = P̄[{ω, T}, {ω, T}] + R, P_xz = P̄[:, {ω, T}], inverted in closed form.
+            s00 = Pm[A_W, A_W] + r_w
+            s01 = Pm[A_W, A_T]
+            s11 = Pm[A_T, A_T] + r_t
+            det = s00 * s11 - s01 * s01
+            i00 = s11 / det
+            i01 = -s01 / det
+            i11 = s00 / det
+            e0 = omega[k, c] - xm[A_W]
+            e1 = torque[k, c] - xm[A_T]
             for r in range(3):
-                pxz[r, 0] = Pm[r, A_W]
-                pxz[r, 1] = Pm[r, A_T]
-            pzz[1, 0] = pzz[0, 1]
-            pzz[0, 0] += r_w
-            pzz[1, 1] += r_t
-            det = pzz[0, 0] * pzz[1, 1] - pzz[0, 1] * pzz[1, 0]
-            i00 = pzz[1, 1] / det
-            i01 = -pzz[0, 1] / det
-            i11 = pzz[0, 0] / det
-            e0 = omega[k, c] - zhat[0]
-            e1 = torque[k, c] - zhat[1]
-            for r in range(3):
-                g0 = pxz[r, 0] * i00 + pxz[r, 1] * i01
-                g1 = pxz[r, 0] * i01 + pxz[r, 1] * i11
+                g0 = Pm[r, A_W] * i00 + Pm[r, A_T] * i01
+                g1 = Pm[r, A_W] * i01 + Pm[r, A_T] * i11
                 x[c, r] = xm[r] + g0 * e0 + g1 * e1
                 for q in range(3):
                     # P = P̄ − K P_zz Kᵀ = P̄ − K P_xzᵀ
-                    P[c, r, q] = Pm[r, q] - (g0 * pxz[q, 0] + g1 * pxz[q, 1])
+                    P[c, r, q] = Pm[r, q] - (g0 * Pm[q, A_W] + g1 * Pm[q, A_T])
             for r in range(3):
                 for q in range(r + 1, 3):
                     v = 0.5 * (P[c, r, q] + P[c, q, r])
@@ -506,7 +513,7 @@ def ukf_kernel(t: np.ndarray, omega: np.ndarray, torque: np.ndarray, prm: UKFKer
             var = (P[c, A_T, A_T] - 2.0 * iw * P[c, A_T, A_A] + iw * iw * P[c, A_A, A_A])
             sigma[k, c] = np.sqrt(max(var, 0.0)) / radius
             high[k, c] = is_high or now_innov or now_torque
-        _push(hist_t, hist_w, t[k], omega[k])
+        _push(hist_t, hist_w, t, omega, k)
 
 
 @njit(**_JIT)
