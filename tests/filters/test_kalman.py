@@ -14,6 +14,7 @@ from vestim.filters.kalman import (
     _joseph,
     kalman_update,
     kalman_update_scalar,
+    kalman_update_scalar3,
     ukf_update,
     ukf_update4,
 )
@@ -207,3 +208,26 @@ def test_ukf_update4_equals_ukf_update_bit_for_bit(seed):
     okb = ukf_update4(xb, Pb, Pxy, Pyy, nu, np.empty((4, 4)), Kb)
     assert oka == okb
     assert np.array_equal(xa, xb) and np.array_equal(Pa, Pb) and np.array_equal(Ka, Kb)
+
+
+@settings(max_examples=50, deadline=None)
+@given(st.integers(0, 2**32 - 1), st.sampled_from([0, 1, 2]))
+def test_kalman_update_scalar3_equals_the_general_one_bit_for_bit(seed, zeros):
+    """The LuGre corner KF's written-out 3-state update (issue 27's speed) must give the floats
+    of kalman_update_scalar exactly (signs of zero included: rows with zero entries), so the
+    pipeline's outputs do not move; the row as badly scaled as the LuGre output [σ0, σ2, σ1]."""
+    rng = np.random.default_rng(seed)
+    d = np.diag([1e-3, 1.0, 0.1])  # the corner KF's P0 scales (z̄, v_r, ż̄)
+    P = d @ _spd(rng, 3) @ d
+    P = 0.5 * (P + P.T)
+    h = np.array([600.0, 0.002, 0.8]) * rng.uniform(0.5, 2.0, 3)
+    h[:zeros] = 0.0
+    x, r, nu = rng.standard_normal(3), 10.0 ** rng.uniform(-4, 0), rng.standard_normal()
+    xa, Pa = x.copy(), P.copy()
+    kalman_update_scalar(xa, Pa, h, r, nu, np.empty(3), np.empty(3), np.empty((3, 3)))
+    out = kalman_update_scalar3(P[0, 0], P[0, 1], P[0, 2], P[1, 1], P[1, 2], P[2, 2],
+                                x[0], x[1], x[2], h[0], h[1], h[2], r, nu)
+    xb = np.array(out[:3])
+    Pb = np.array([[out[3], out[4], out[5]], [out[4], out[6], out[7]], [out[5], out[7], out[8]]])
+    assert np.array_equal(xa, xb) and np.array_equal(Pa, Pb)
+    assert np.array_equal(np.signbit(Pa), np.signbit(Pb))

@@ -126,6 +126,59 @@ def kalman_update_scalar(x: np.ndarray, P: np.ndarray, h: np.ndarray, r: float, 
 
 
 @njit(**_JIT)
+def kalman_update_scalar3(p00: float, p01: float, p02: float, p11: float, p12: float,
+                          p22: float, x0: float, x1: float, x2: float, h0: float, h1: float,
+                          h2: float, r: float, nu: float
+                          ) -> tuple[float, float, float, float, float, float, float, float, float]:
+    """:func:`kalman_update_scalar` for n = 3 written out on scalars: the same operations in the
+    same order (each sum from 0.0, the Joseph factor's entries as 1.0 − k h or 0.0 − k h), so
+    the same floats, bit for bit, without arrays (a kernel's per-sample row views of its state
+    cost reference counting).
+
+    P = [[p00, p01, p02], [p01, p11, p12], [p02, p12, p22]] (symmetric), x = (x0, x1, x2), the
+    row h = (h0, h1, h2), var(v) = r, innovation ν. Returns the updated
+    (x0, x1, x2, p00, p01, p02, p11, p12, p22).
+    """
+    ph0 = 0.0 + p00 * h0 + p01 * h1 + p02 * h2
+    ph1 = 0.0 + p01 * h0 + p11 * h1 + p12 * h2
+    ph2 = 0.0 + p02 * h0 + p12 * h1 + p22 * h2
+    s = 0.0 + h0 * ph0 + h1 * ph1 + h2 * ph2
+    s += r
+    k0 = ph0 / s
+    k1 = ph1 / s
+    k2 = ph2 / s
+    x0 += k0 * nu
+    x1 += k1 * nu
+    x2 += k2 * nu
+    m00 = p00 - k0 * ph0
+    m01 = p01 - k0 * ph1
+    m02 = p02 - k0 * ph2
+    m10 = p01 - k1 * ph0
+    m11 = p11 - k1 * ph1
+    m12 = p12 - k1 * ph2
+    m20 = p02 - k2 * ph0
+    m21 = p12 - k2 * ph1
+    m22 = p22 - k2 * ph2
+    # column j of (I − k hᵀ)ᵀ: g_jq = δ_jq − k_j h_q
+    g00 = 1.0 - k0 * h0
+    g01 = 0.0 - k0 * h1
+    g02 = 0.0 - k0 * h2
+    g10 = 0.0 - k1 * h0
+    g11 = 1.0 - k1 * h1
+    g12 = 0.0 - k1 * h2
+    g20 = 0.0 - k2 * h0
+    g21 = 0.0 - k2 * h1
+    g22 = 1.0 - k2 * h2
+    n00 = 0.0 + m00 * g00 + m01 * g01 + m02 * g02 + k0 * k0 * r
+    n01 = 0.0 + m00 * g10 + m01 * g11 + m02 * g12 + k0 * k1 * r
+    n02 = 0.0 + m00 * g20 + m01 * g21 + m02 * g22 + k0 * k2 * r
+    n11 = 0.0 + m10 * g10 + m11 * g11 + m12 * g12 + k1 * k1 * r
+    n12 = 0.0 + m10 * g20 + m11 * g21 + m12 * g22 + k1 * k2 * r
+    n22 = 0.0 + m20 * g20 + m21 * g21 + m22 * g22 + k2 * k2 * r
+    return x0, x1, x2, n00, n01, n02, n11, n12, n22
+
+
+@njit(**_JIT)
 def _gain_and_state(x: np.ndarray, S: np.ndarray, C: np.ndarray, nu: np.ndarray, L: np.ndarray,
                     K: np.ndarray) -> bool:
     """K = C S⁻¹ by a Cholesky solve (C (n, m) the state-measurement cross covariance, S (m, m)

@@ -75,7 +75,7 @@ from vestim.estimators.velocity.corner_slip import (
     is_high_slip,
     slip_ratio_estimate,
 )
-from vestim.filters.kalman import kalman_update_scalar
+from vestim.filters.kalman import kalman_update_scalar3
 from vestim.filters.ukf import sigma_points
 from vestim.models.lpv import KalmanState
 
@@ -161,47 +161,53 @@ def _store_prediction(x: np.ndarray, P: np.ndarray, c: int, m0: float, m1: float
 
 
 @njit(**_JIT)
-def _kf_step(x: np.ndarray, P: np.ndarray, c: int, Ak: np.ndarray, Bk: np.ndarray, u: float,
-             q: np.ndarray, r: float, y: float, h: np.ndarray, T: np.ndarray, ph: np.ndarray,
-             kg: np.ndarray, M: np.ndarray) -> None:
+def _kf_step(x: np.ndarray, P: np.ndarray, c: int, a00: float, a01: float, a20: float,
+             a21: float, a22: float, b0: float, b1: float, b2: float, u: float, q0: float,
+             q1: float, q2: float, r: float, y: float, h0: float, h1: float, h2: float) -> None:
     """One predict/update of the linear KF (000 eq. (21)–(22), filter form), in place on x[c], P[c].
 
-    h = C = [σ0, σ2, σ1] is the output row; T, ph, kg, M are scratch. Uses the structure
-    of A_k (:func:`~.corner_discrete.kf_transition`): A_k[0, 2] = 0 and row 1 = [0, 1, 0]
-    (v_rx is only driven by the input).
+    (h0, h1, h2) = C = [σ0, σ2, σ1] is the output row, (q0, q1, q2) the diagonal of Q̄. Uses
+    the structure of A_k (:func:`~.corner_discrete.kf_transition`): A_k[0, 2] = 0 and row 1 =
+    [0, 1, 0] (v_rx is only driven by the input); a00 … a22 are A_k's other entries, b0 … b2
+    the entries of B_k. Scalars, not arrays or row views (each costs reference counting per
+    corner-step; issue 27): the arithmetic of the array form, bit for bit.
     """
-    a00, a01, a20, a21, a22 = Ak[0, 0], Ak[0, 1], Ak[2, 0], Ak[2, 1], Ak[2, 2]
-    xp0 = a00 * x[c, 0] + a01 * x[c, 1] + Bk[0] * u
-    xp1 = x[c, 1] + Bk[1] * u
-    xp2 = a20 * x[c, 0] + a21 * x[c, 1] + a22 * x[c, 2] + Bk[2] * u
+    x0, x1, x2 = x[c, 0], x[c, 1], x[c, 2]
+    p00, p01, p02 = P[c, 0, 0], P[c, 0, 1], P[c, 0, 2]
+    p10, p11, p12 = P[c, 1, 0], P[c, 1, 1], P[c, 1, 2]
+    p20, p21, p22 = P[c, 2, 0], P[c, 2, 1], P[c, 2, 2]
+    xp0 = a00 * x0 + a01 * x1 + b0 * u
+    xp1 = x1 + b1 * u
+    xp2 = a20 * x0 + a21 * x1 + a22 * x2 + b2 * u
     # T = A P, then P⁻ = T Aᵀ + Q
-    for j in range(NX):
-        T[0, j] = a00 * P[c, 0, j] + a01 * P[c, 1, j]
-        T[1, j] = P[c, 1, j]
-        T[2, j] = a20 * P[c, 0, j] + a21 * P[c, 1, j] + a22 * P[c, 2, j]
-    s00 = T[0, 0] * a00 + T[0, 1] * a01 + q[0]
-    s01 = T[0, 1]
-    s02 = T[0, 0] * a20 + T[0, 1] * a21 + T[0, 2] * a22
-    s11 = T[1, 1] + q[1]
-    s12 = T[1, 0] * a20 + T[1, 1] * a21 + T[1, 2] * a22
-    s22 = T[2, 0] * a20 + T[2, 1] * a21 + T[2, 2] * a22 + q[2]
+    t00 = a00 * p00 + a01 * p10
+    t01 = a00 * p01 + a01 * p11
+    t02 = a00 * p02 + a01 * p12
+    t20 = a20 * p00 + a21 * p10 + a22 * p20
+    t21 = a20 * p01 + a21 * p11 + a22 * p21
+    t22 = a20 * p02 + a21 * p12 + a22 * p22
+    s00 = t00 * a00 + t01 * a01 + q0
+    s01 = t01
+    s02 = t00 * a20 + t01 * a21 + t02 * a22
+    s11 = p11 + q1
+    s12 = p10 * a20 + p11 * a21 + p12 * a22
+    s22 = t20 * a20 + t21 * a21 + t22 * a22 + q2
+    if not math.isnan(y):
+        # Update with μ_x = C x, C = [σ0, σ2, σ1], in the Joseph form of
+        # :func:`~vestim.filters.kalman.kalman_update_scalar`: symmetric positive definite by
+        # construction even when round-off makes P⁻ − K S Kᵀ lose definiteness (σ0 ≈ 600
+        # against σ2 ≈ 0.002 makes C badly scaled).
+        innov = y - (h0 * xp0 + h1 * xp1 + h2 * xp2)
+        xp0, xp1, xp2, s00, s01, s02, s11, s12, s22 = kalman_update_scalar3(
+            s00, s01, s02, s11, s12, s22, xp0, xp1, xp2, h0, h1, h2, r, innov)
     _store_prediction(x, P, c, xp0, xp1, xp2, s00, s01, s02, s11, s12, s22)
-    if math.isnan(y):
-        return
-    # Update with μ_x = C x, C = [σ0, σ2, σ1], in the Joseph form of
-    # :func:`~vestim.filters.kalman.kalman_update_scalar`: symmetric positive definite by
-    # construction even when round-off makes P⁻ − K S Kᵀ lose definiteness (σ0 ≈ 600
-    # against σ2 ≈ 0.002 makes C badly scaled).
-    innov = y - (h[0] * xp0 + h[1] * xp1 + h[2] * xp2)
-    kalman_update_scalar(x[c], P[c], h, r, innov, ph, kg, M)
 
 
 @njit(**_JIT)
 def _ukf_step(x: np.ndarray, P: np.ndarray, c: int, Ak: np.ndarray, Bk: np.ndarray, u: float,
               q: np.ndarray, r: float, y: float, h: np.ndarray, wm: np.ndarray, wc: np.ndarray,
-              tau: float, pts: np.ndarray, L: np.ndarray, xm: np.ndarray, Pm: np.ndarray,
-              kg: np.ndarray) -> None:
-    """One step of 003 Algorithm 1, in place on x[c], P[c] (xm, Pm, kg: scratch).
+              tau: float, pts: np.ndarray, L: np.ndarray, xm: np.ndarray, Pm: np.ndarray) -> None:
+    """One step of 003 Algorithm 1, in place on x[c], P[c] (xm, Pm: scratch).
 
     Prediction through the sigma points of (x, P) (papers' scaling). The output
     μ = C x is linear, so the sigma-point sums of the update (P_ŷŷ, P_x̂ŷ of
@@ -265,13 +271,13 @@ def _ukf_step(x: np.ndarray, P: np.ndarray, c: int, Ak: np.ndarray, Bk: np.ndarr
     s00 += q[0]
     s11 += q[1]
     s22 += q[2]
+    if not math.isnan(y):
+        # P_x̂ŷ = P_m Cᵀ, P_ŷŷ = C P_m Cᵀ + R̄: the linear update, in the same Joseph form as
+        # the KF (Algorithm 1's P_m − K P_ŷŷ Kᵀ is equal in exact arithmetic).
+        innov = y - (h[0] * m0 + h[1] * m1 + h[2] * m2)
+        m0, m1, m2, s00, s01, s02, s11, s12, s22 = kalman_update_scalar3(
+            s00, s01, s02, s11, s12, s22, m0, m1, m2, h[0], h[1], h[2], r, innov)
     _store_prediction(x, P, c, m0, m1, m2, s00, s01, s02, s11, s12, s22)
-    if math.isnan(y):
-        return
-    # P_x̂ŷ = P_m Cᵀ, P_ŷŷ = C P_m Cᵀ + R̄: the linear update, in the same Joseph form as
-    # the KF (Algorithm 1's P_m − K P_ŷŷ Kᵀ is equal in exact arithmetic).
-    innov = y - (h[0] * m0 + h[1] * m1 + h[2] * m2)
-    kalman_update_scalar(x[c], P[c], h, r, innov, xm, kg, Pm)
 
 
 @njit(**_JIT)
@@ -307,11 +313,9 @@ def lugre_kf_kernel(p: CornerParams, s: CornerState, inp: CornerInputs,
     Bk = np.empty(3)
     xp = np.empty(3)
     Pp = np.empty((3, 3))
-    T = np.empty((3, 3))
-    M = np.empty((3, 3))
     hrow = np.array([sigma0, sigma2, sigma1])
-    ph = np.empty(NX)
-    kg = np.empty(NX)
+    qn0, qn1, qn2 = q[0], q[1], q[2]
+    qh0, qh1, qh2 = q_high[0], q_high[1], q_high[2]
     pts = np.empty((2 * NX + 1, NX))
     L = np.empty((NX, NX))
     wdh = np.empty(4, dtype=np.bool_)
@@ -371,15 +375,21 @@ def lugre_kf_kernel(p: CornerParams, s: CornerState, inp: CornerInputs,
                 rel = count_release(hold, c, yk, mu_release, release_window)
                 high = is_high_slip(lam_k, thr, wdh[c], hint[k, c], rel)
                 scale = h / step_ref
-                for i in range(NX):
-                    qk[i] = (q_high[i] if high else q[i]) * scale
                 rk = r_high if high else r
                 y_use = math.nan if math.isinf(rk) else yk  # R̄ = ∞: prediction only
                 if use_ukf:
+                    for i in range(NX):
+                        qk[i] = (q_high[i] if high else q[i]) * scale
                     _ukf_step(x, P, c, Ak, Bk, u, qk, rk, y_use, hrow, wm, wc, tau, pts, L, xp,
-                              Pp, kg)
+                              Pp)
+                elif high:
+                    _kf_step(x, P, c, Ak[0, 0], Ak[0, 1], Ak[2, 0], Ak[2, 1], Ak[2, 2], Bk[0],
+                             Bk[1], Bk[2], u, qh0 * scale, qh1 * scale, qh2 * scale, rk, y_use,
+                             sigma0, sigma2, sigma1)
                 else:
-                    _kf_step(x, P, c, Ak, Bk, u, qk, rk, y_use, hrow, T, ph, kg, M)
+                    _kf_step(x, P, c, Ak[0, 0], Ak[0, 1], Ak[2, 0], Ak[2, 1], Ak[2, 2], Bk[0],
+                             Bk[1], Bk[2], u, qn0 * scale, qn1 * scale, qn2 * scale, rk, y_use,
+                             sigma0, sigma2, sigma1)
             out_vxt[k, c] = radius * wk - x[c, VR]
             out_sigma[k, c] = math.sqrt(max(P[c, VR, VR], 0.0))
             out_high[k, c] = high
