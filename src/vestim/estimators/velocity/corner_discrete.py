@@ -97,21 +97,33 @@ def kf_transition(a: float, b: float, h: float, Ak: np.ndarray, Bk: np.ndarray) 
         h: step length, s.
         Ak: (3, 3) output. Bk: (3,) output.
     """
-    x = a * h
-    e = math.exp(-x)
-    p1, p2, q1, q2 = decay_functions(x)
+    e, a01, a20, a21, b0, b1, b2 = kf_transition_entries(a, b, h)
     Ak[0, 0] = e
-    Ak[0, 1] = h * p1
+    Ak[0, 1] = a01
     Ak[0, 2] = 0.0
     Ak[1, 0] = 0.0
     Ak[1, 1] = 1.0
     Ak[1, 2] = 0.0
-    Ak[2, 0] = -b * h * e
-    Ak[2, 1] = -b * h * h * p2
+    Ak[2, 0] = a20
+    Ak[2, 1] = a21
     Ak[2, 2] = e
-    Bk[0] = h * h * q1
-    Bk[1] = h
-    Bk[2] = h * p1 - b * h * h * h * q2
+    Bk[0] = b0
+    Bk[1] = b1
+    Bk[2] = b2
+
+
+@njit(**_JIT)
+def kf_transition_entries(a: float, b: float, h: float
+                          ) -> tuple[float, float, float, float, float, float, float]:
+    """The entries of :func:`kf_transition`'s A_k and B_k that are not 0 or 1, as floats
+    (a kernel that keeps them in scalars saves the arrays' reference counting per step):
+    (E = A_k[0, 0] = A_k[2, 2], A_k[0, 1] = h p1, A_k[2, 0] = −b h E, A_k[2, 1] = −b h² p2,
+    B_k[0] = h² q1, B_k[1] = h, B_k[2] = h p1 − b h³ q2); a in 1/s, b in 1/s², h in s.
+    """
+    x = a * h
+    e = math.exp(-x)
+    p1, p2, q1, q2 = decay_functions(x)
+    return e, h * p1, -b * h * e, -b * h * h * p2, h * h * q1, h, h * p1 - b * h * h * h * q2
 
 
 @njit(**_JIT)

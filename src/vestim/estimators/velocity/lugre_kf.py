@@ -68,7 +68,7 @@ from vestim.estimators.velocity.corner_common import (
     transport_rate,
     vyt_no_sideslip,
 )
-from vestim.estimators.velocity.corner_discrete import kf_transition
+from vestim.estimators.velocity.corner_discrete import kf_transition_entries
 from vestim.estimators.velocity.corner_slip import (
     HighSlipParams,
     detector_step,
@@ -309,7 +309,8 @@ def lugre_kf_kernel(p: CornerParams, s: CornerState, inp: CornerInputs,
     out_z, out_zdot = out.zx, out.zdot
     n = t.shape[0]
     kr = kappa * radius
-    Ak = np.empty((3, 3))
+    Ak = np.zeros((3, 3))  # the UKF's; row 1 = [0, 1, 0] and A_k[0, 2] = 0 set once
+    Ak[1, 1] = 1.0
     Bk = np.empty(3)
     xp = np.empty(3)
     Pp = np.empty((3, 3))
@@ -360,7 +361,7 @@ def lugre_kf_kernel(p: CornerParams, s: CornerState, inp: CornerInputs,
                 rho1 = abs(wk)
                 a = kr * 0.5 * (rho0 + rho1)
                 b = kr * (rho1 - rho0) / h
-                kf_transition(a, b, h, Ak, Bk)
+                e, a01, a20, a21, b0, b1, b2 = kf_transition_entries(a, b, h)
                 d_now = pick(delta[k, c], hold[H_D, c])
                 r_mid = 0.5 * (pick(yaw_rate[k], hold[H_R, c]) + hold[H_R, c])
                 ax_mid = 0.5 * (pick(a_xt[k, c], hold[H_AX, c]) + hold[H_AX, c])
@@ -370,7 +371,8 @@ def lugre_kf_kernel(p: CornerParams, s: CornerState, inp: CornerInputs,
                 vxt_dot = ax_mid + transport_rate(r_mid, d_now, hold[H_D, c], h) * vyt
                 u = radius * (wk - w0) / h - vxt_dot
                 # High-slip module on the prior mean (000 Sec. III): slip or |ω̇| criterion.
-                vr_prior = Ak[VR, Z] * x[c, Z] + Ak[VR, VR] * x[c, VR] + Bk[VR] * u
+                # (A_k's row 1 = [0, 1, 0], B_k[1] = b1, :func:`~.corner_discrete.kf_transition`)
+                vr_prior = 0.0 * x[c, Z] + 1.0 * x[c, VR] + b1 * u
                 lam_k = slip_ratio_estimate(radius * wk, vr_prior, min_speed)
                 rel = count_release(hold, c, yk, mu_release, release_window)
                 high = is_high_slip(lam_k, thr, wdh[c], hint[k, c], rel)
@@ -380,16 +382,22 @@ def lugre_kf_kernel(p: CornerParams, s: CornerState, inp: CornerInputs,
                 if use_ukf:
                     for i in range(NX):
                         qk[i] = (q_high[i] if high else q[i]) * scale
+                    Ak[0, 0] = e
+                    Ak[0, 1] = a01
+                    Ak[2, 0] = a20
+                    Ak[2, 1] = a21
+                    Ak[2, 2] = e
+                    Bk[0] = b0
+                    Bk[1] = b1
+                    Bk[2] = b2
                     _ukf_step(x, P, c, Ak, Bk, u, qk, rk, y_use, hrow, wm, wc, tau, pts, L, xp,
                               Pp)
                 elif high:
-                    _kf_step(x, P, c, Ak[0, 0], Ak[0, 1], Ak[2, 0], Ak[2, 1], Ak[2, 2], Bk[0],
-                             Bk[1], Bk[2], u, qh0 * scale, qh1 * scale, qh2 * scale, rk, y_use,
-                             sigma0, sigma2, sigma1)
+                    _kf_step(x, P, c, e, a01, a20, a21, e, b0, b1, b2, u, qh0 * scale,
+                             qh1 * scale, qh2 * scale, rk, y_use, sigma0, sigma2, sigma1)
                 else:
-                    _kf_step(x, P, c, Ak[0, 0], Ak[0, 1], Ak[2, 0], Ak[2, 1], Ak[2, 2], Bk[0],
-                             Bk[1], Bk[2], u, qn0 * scale, qn1 * scale, qn2 * scale, rk, y_use,
-                             sigma0, sigma2, sigma1)
+                    _kf_step(x, P, c, e, a01, a20, a21, e, b0, b1, b2, u, qn0 * scale,
+                             qn1 * scale, qn2 * scale, rk, y_use, sigma0, sigma2, sigma1)
             out_vxt[k, c] = radius * wk - x[c, VR]
             out_sigma[k, c] = math.sqrt(max(P[c, VR, VR], 0.0))
             out_high[k, c] = high
