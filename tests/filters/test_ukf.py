@@ -18,71 +18,44 @@ def _general(x: np.ndarray, P: np.ndarray) -> np.ndarray:
     return out
 
 
+def _fixed(x: np.ndarray, P: np.ndarray) -> np.ndarray:
+    """The written-out form for N = len(x), called as the kernels call it."""
+    n = x.shape[0]
+    out = np.empty((2 * n + 1, n))
+    tau = ukf_weights(n)[2]
+    if n == 2:
+        sigma_points2(x[0], x[1], P[0, 0], P[1, 0], P[1, 1], tau, out)
+    elif n == 3:
+        sigma_points3(x[0], x[1], x[2], P[0, 0], P[1, 0], P[1, 1], P[2, 0], P[2, 1], P[2, 2],
+                      tau, out)
+    else:
+        sigma_points4(x, P, tau, out)
+    return out
+
+
+@pytest.mark.parametrize("n", [2, 3, 4])
 @pytest.mark.parametrize("seed", range(20))
-def test_sigma_points3_equals_the_general_form_bit_for_bit(seed):
+def test_fixed_size_sigma_points_equal_the_general_form_bit_for_bit(n, seed):
+    """Covariances over nine decades of eigenvalue, means over six; a signed zero in the
+    mean survives as in the general loop."""
     rng = np.random.default_rng(seed)
-    q, _ = np.linalg.qr(rng.standard_normal((3, 3)))
-    P = (q * 10.0 ** rng.uniform(-3, 6, 3)) @ q.T
-    x = rng.standard_normal(3) * 10.0 ** rng.uniform(-2, 4, 3)
-    x[seed % 3] = -0.0 if seed % 2 else x[seed % 3]  # a signed zero survives as in the loop
-    out = np.empty((7, 3))
-    sigma_points3(x[0], x[1], x[2], P[0, 0], P[1, 0], P[1, 1], P[2, 0], P[2, 1], P[2, 2],
-                  ukf_weights(3)[2], out)
-    ref = _general(x, P)
+    q, _ = np.linalg.qr(rng.standard_normal((n, n)))
+    P = (q * 10.0 ** rng.uniform(-3, 6, n)) @ q.T
+    x = rng.standard_normal(n) * 10.0 ** rng.uniform(-2, 4, n)
+    if seed % 2:
+        x[seed % n] = -0.0
+    out, ref = _fixed(x, P), _general(x, P)
     assert np.array_equal(out, ref)
     assert np.array_equal(np.signbit(out), np.signbit(ref))
 
 
-@pytest.mark.parametrize("P", [np.zeros((3, 3)),  # every pivot floored (scale 0)
-                               np.diag([4.0, 0.0, -1e-9]),  # the 2nd and 3rd floored
-                               np.ones((3, 3))])  # rank 1: round-off pivots floored
-def test_sigma_points3_floors_lost_pivots_as_the_general_form(P):
-    x = np.array([1.0, -2.0, 3.0])
-    out = np.empty((7, 3))
-    sigma_points3(x[0], x[1], x[2], P[0, 0], P[1, 0], P[1, 1], P[2, 0], P[2, 1], P[2, 2],
-                  ukf_weights(3)[2], out)
-    assert np.array_equal(out, _general(x, P))
-
-
-@pytest.mark.parametrize("seed", range(20))
-def test_sigma_points4_equals_the_general_form_bit_for_bit(seed):
-    rng = np.random.default_rng(seed)
-    q, _ = np.linalg.qr(rng.standard_normal((4, 4)))
-    P = (q * 10.0 ** rng.uniform(-3, 6, 4)) @ q.T
-    x = rng.standard_normal(4) * 10.0 ** rng.uniform(-2, 4, 4)
-    x[seed % 4] = -0.0 if seed % 2 else x[seed % 4]
-    out = np.empty((9, 4))
-    sigma_points4(x, P, ukf_weights(4)[2], out)
-    ref = _general(x, P)
-    assert np.array_equal(out, ref)
-    assert np.array_equal(np.signbit(out), np.signbit(ref))
-
-
-@pytest.mark.parametrize("P", [np.zeros((4, 4)), np.diag([4.0, 0.0, 1.0, -1e-9]),
-                               np.ones((4, 4))])
-def test_sigma_points4_floors_lost_pivots_as_the_general_form(P):
-    x = np.array([1.0, -2.0, 3.0, 0.5])
-    out = np.empty((9, 4))
-    sigma_points4(x, P, ukf_weights(4)[2], out)
-    assert np.array_equal(out, _general(x, P))
-
-
-@pytest.mark.parametrize("seed", range(20))
-def test_sigma_points2_equals_the_general_form_bit_for_bit(seed):
-    rng = np.random.default_rng(seed)
-    q, _ = np.linalg.qr(rng.standard_normal((2, 2)))
-    P = (q * 10.0 ** rng.uniform(-3, 6, 2)) @ q.T
-    x = rng.standard_normal(2) * 10.0 ** rng.uniform(-2, 4, 2)
-    x[seed % 2] = -0.0 if seed % 4 < 2 else x[seed % 2]
-    out = np.empty((5, 2))
-    sigma_points2(x[0], x[1], P[0, 0], P[1, 0], P[1, 1], ukf_weights(2)[2], out)
-    ref = _general(x, P)
-    assert np.array_equal(out, ref)
-    assert np.array_equal(np.signbit(out), np.signbit(ref))
-
-
-@pytest.mark.parametrize("P", [np.zeros((2, 2)), np.diag([4.0, -1e-9]), np.ones((2, 2))])
-def test_sigma_points2_floors_lost_pivots_as_the_general_form(P):
-    out = np.empty((5, 2))
-    sigma_points2(1.0, -2.0, P[0, 0], P[1, 0], P[1, 1], ukf_weights(2)[2], out)
-    assert np.array_equal(out, _general(np.array([1.0, -2.0]), P))
+@pytest.mark.parametrize("n", [2, 3, 4])
+@pytest.mark.parametrize("kind", ["zero", "diagonal", "rank one"])
+def test_fixed_size_sigma_points_floor_lost_pivots_as_the_general_form(n, kind):
+    """Every pivot floored (P = 0), a zero and a slightly negative pivot on the diagonal, and
+    a rank-one P whose round-off pivots are floored."""
+    P = {"zero": np.zeros((n, n)),
+         "diagonal": np.diag({2: [4.0, -1e-9], 3: [4.0, 0.0, -1e-9], 4: [4.0, 0.0, 1.0, -1e-9]}[n]),
+         "rank one": np.ones((n, n))}[kind]
+    x = np.array([1.0, -2.0, 3.0, 0.5])[:n]
+    assert np.array_equal(_fixed(x, P), _general(x, P))

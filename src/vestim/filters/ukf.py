@@ -65,21 +65,31 @@ def sigma_points(x: np.ndarray, P: np.ndarray, tau: float, L: np.ndarray, out: n
 
 
 @njit(**_JIT)
+def _pivot_floor(scale: float) -> float:
+    """The Cholesky pivot floor of :func:`vestim.filters.linalg.cholesky` for the largest
+    |diagonal| ``scale`` of P."""
+    return JITTER * scale if scale > 0.0 else JITTER
+
+
+@njit(**_JIT)
+def _root(s: float, floor: float) -> float:
+    """√ of the pivot ``s``, floored as :func:`vestim.filters.linalg.cholesky` floors it (a
+    pivot not above ``floor``, NaN included, becomes ``floor``)."""
+    if not s > floor:
+        s = floor
+    return math.sqrt(s)
+
+
+@njit(**_JIT)
 def sigma_points2(x0: float, x1: float, p00: float, p10: float, p11: float, tau: float,
                   out: np.ndarray) -> None:
     """:func:`sigma_points` for N = 2 written out, as :func:`sigma_points3` (the same
     numbers bit for bit). ``out`` (5, 2)."""
     scale = max(max(0.0, abs(p00)), abs(p11))
-    floor = JITTER * scale if scale > 0.0 else JITTER
-    s = p00
-    if not s > floor:
-        s = floor
-    l00 = math.sqrt(s)
+    floor = _pivot_floor(scale)
+    l00 = _root(p00, floor)
     l10 = p10 / l00
-    s = p11 - l10 * l10
-    if not s > floor:
-        s = floor
-    l11 = math.sqrt(s)
+    l11 = _root(p11 - l10 * l10, floor)
     a00, a10, a11 = tau * l00, tau * l10, tau * l11
     zero = tau * 0.0
     out[0, 0], out[0, 1] = x0, x1
@@ -98,22 +108,13 @@ def sigma_points3(x0: float, x1: float, x2: float, p00: float, p10: float, p11: 
     zero entries of L added as +0.0), without the loops over a run-time size or the views of
     a state array. ``out`` (7, 3)."""
     scale = max(max(max(0.0, abs(p00)), abs(p11)), abs(p22))
-    floor = JITTER * scale if scale > 0.0 else JITTER
-    s = p00
-    if not s > floor:
-        s = floor
-    l00 = math.sqrt(s)
+    floor = _pivot_floor(scale)
+    l00 = _root(p00, floor)
     l10 = p10 / l00
     l20 = p20 / l00
-    s = p11 - l10 * l10
-    if not s > floor:
-        s = floor
-    l11 = math.sqrt(s)
+    l11 = _root(p11 - l10 * l10, floor)
     l21 = (p21 - l20 * l10) / l11
-    s = p22 - l20 * l20 - l21 * l21
-    if not s > floor:
-        s = floor
-    l22 = math.sqrt(s)
+    l22 = _root(p22 - l20 * l20 - l21 * l21, floor)
     a00, a10, a20 = tau * l00, tau * l10, tau * l20
     a11, a21, a22 = tau * l11, tau * l21, tau * l22
     zero = tau * 0.0
@@ -133,29 +134,17 @@ def sigma_points4(x: np.ndarray, P: np.ndarray, tau: float, out: np.ndarray) -> 
     over a run-time size. ``out`` (9, 4)."""
     p00, p11, p22, p33 = P[0, 0], P[1, 1], P[2, 2], P[3, 3]
     scale = max(max(max(max(0.0, abs(p00)), abs(p11)), abs(p22)), abs(p33))
-    floor = JITTER * scale if scale > 0.0 else JITTER
-    s = p00
-    if not s > floor:
-        s = floor
-    l00 = math.sqrt(s)
+    floor = _pivot_floor(scale)
+    l00 = _root(p00, floor)
     l10 = P[1, 0] / l00
     l20 = P[2, 0] / l00
     l30 = P[3, 0] / l00
-    s = p11 - l10 * l10
-    if not s > floor:
-        s = floor
-    l11 = math.sqrt(s)
+    l11 = _root(p11 - l10 * l10, floor)
     l21 = (P[2, 1] - l20 * l10) / l11
     l31 = (P[3, 1] - l30 * l10) / l11
-    s = p22 - l20 * l20 - l21 * l21
-    if not s > floor:
-        s = floor
-    l22 = math.sqrt(s)
+    l22 = _root(p22 - l20 * l20 - l21 * l21, floor)
     l32 = (P[3, 2] - l30 * l20 - l31 * l21) / l22
-    s = p33 - l30 * l30 - l31 * l31 - l32 * l32
-    if not s > floor:
-        s = floor
-    l33 = math.sqrt(s)
+    l33 = _root(p33 - l30 * l30 - l31 * l31 - l32 * l32, floor)
     x0, x1, x2, x3 = x[0], x[1], x[2], x[3]
     a00, a10, a20, a30 = tau * l00, tau * l10, tau * l20, tau * l30
     a11, a21, a31 = tau * l11, tau * l21, tau * l31

@@ -98,6 +98,14 @@ def kf_transition(a: float, b: float, h: float, Ak: np.ndarray, Bk: np.ndarray) 
         Ak: (3, 3) output. Bk: (3,) output.
     """
     e, a01, a20, a21, b0, b1, b2 = kf_transition_entries(a, b, h)
+    fill_transition(e, a01, a20, a21, b0, b1, b2, Ak, Bk)
+
+
+@njit(**_JIT)
+def fill_transition(e: float, a01: float, a20: float, a21: float, b0: float, b1: float,
+                    b2: float, Ak: np.ndarray, Bk: np.ndarray) -> None:
+    """A_k (3, 3) and B_k (3,) of :func:`kf_transition` from the entries that
+    :func:`kf_transition_entries` returns (the others are 0 or 1)."""
     Ak[0, 0] = e
     Ak[0, 1] = a01
     Ak[0, 2] = 0.0

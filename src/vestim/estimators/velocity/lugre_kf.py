@@ -68,7 +68,10 @@ from vestim.estimators.velocity.corner_common import (
     transport_rate,
     vyt_no_sideslip,
 )
-from vestim.estimators.velocity.corner_discrete import kf_transition_entries
+from vestim.estimators.velocity.corner_discrete import (
+    fill_transition,
+    kf_transition_entries,
+)
 from vestim.estimators.velocity.corner_slip import (
     HighSlipParams,
     detector_step,
@@ -309,8 +312,7 @@ def lugre_kf_kernel(p: CornerParams, s: CornerState, inp: CornerInputs,
     out_z, out_zdot = out.zx, out.zdot
     n = t.shape[0]
     kr = kappa * radius
-    Ak = np.zeros((3, 3))  # the UKF's; row 1 = [0, 1, 0] and A_k[0, 2] = 0 set once
-    Ak[1, 1] = 1.0
+    Ak = np.empty((3, 3))  # the UKF's A_k, B_k (fill_transition)
     Bk = np.empty(3)
     xp = np.empty(3)
     Pp = np.empty((3, 3))
@@ -382,22 +384,13 @@ def lugre_kf_kernel(p: CornerParams, s: CornerState, inp: CornerInputs,
                 if use_ukf:
                     for i in range(NX):
                         qk[i] = (q_high[i] if high else q[i]) * scale
-                    Ak[0, 0] = e
-                    Ak[0, 1] = a01
-                    Ak[2, 0] = a20
-                    Ak[2, 1] = a21
-                    Ak[2, 2] = e
-                    Bk[0] = b0
-                    Bk[1] = b1
-                    Bk[2] = b2
+                    fill_transition(e, a01, a20, a21, b0, b1, b2, Ak, Bk)
                     _ukf_step(x, P, c, Ak, Bk, u, qk, rk, y_use, hrow, wm, wc, tau, pts, L, xp,
                               Pp)
-                elif high:
-                    _kf_step(x, P, c, e, a01, a20, a21, e, b0, b1, b2, u, qh0 * scale,
-                             qh1 * scale, qh2 * scale, rk, y_use, sigma0, sigma2, sigma1)
                 else:
-                    _kf_step(x, P, c, e, a01, a20, a21, e, b0, b1, b2, u, qn0 * scale,
-                             qn1 * scale, qn2 * scale, rk, y_use, sigma0, sigma2, sigma1)
+                    q0, q1, q2 = (qh0, qh1, qh2) if high else (qn0, qn1, qn2)
+                    _kf_step(x, P, c, e, a01, a20, a21, e, b0, b1, b2, u, q0 * scale,
+                             q1 * scale, q2 * scale, rk, y_use, sigma0, sigma2, sigma1)
             out_vxt[k, c] = radius * wk - x[c, VR]
             out_sigma[k, c] = math.sqrt(max(P[c, VR, VR], 0.0))
             out_high[k, c] = high
