@@ -16,7 +16,7 @@ import numpy as np
 import pandas as pd
 
 from vestim.estimators.registry import register, registered
-from vestim.estimators.stiffness.augpf import augpf_kernel
+from vestim.estimators.stiffness.augpf import AugPFParams, AugPFState, augpf_kernel
 from vestim.estimators.stiffness.baselines import ekf_kernel, rls_kf_kernel
 from vestim.estimators.stiffness.config import StiffnessConfig, StiffnessPrior
 from vestim.estimators.stiffness.draws import seed_state
@@ -40,7 +40,12 @@ from vestim.estimators.stiffness.pf import (
     PRR,
     PXX,
     PYY,
+    Estimates,
+    PFParams,
+    PFState,
+    SeriesInputs,
     alg1_kernel,
+    new_estimates,
     pack_particles,
 )
 from vestim.io.vehicle import Vehicle
@@ -145,6 +150,13 @@ class _Setup:
         """Initial mean [v_x, v_y, ψ̇]: wheel-speed reference, 0, measured yaw rate."""
         return np.array([inputs.speed[0], 0.0, inputs.y[0, YAW_RATE]])
 
+    def _estimates_result(self, inputs: StiffnessInputs, out: Estimates, method: str,
+                          n_resampled: int) -> StiffnessResult:
+        """:meth:`result` of a particle filter's :class:`~vestim.estimators.stiffness.pf.Estimates`."""
+        w_sd = np.sqrt(np.maximum(np.diagonal(out.w_cov, axis1=1, axis2=2), 0.0))
+        return self.result(inputs, out.w_hat, w_sd, out.x_hat, np.sqrt(out.x_var), out.b_hat,
+                           method, out.ess, n_resampled)
+
     def result(self, inputs: StiffnessInputs, w_hat: np.ndarray, w_sd: np.ndarray,
                state: np.ndarray, state_sd: np.ndarray, bias: np.ndarray, method: str,
                ess: np.ndarray | None = None, n_resampled: int = 0) -> StiffnessResult:
@@ -160,6 +172,11 @@ class _Setup:
                                state_sd=state_sd, bias=bias_raw, active=inputs.active,
                                ess=ess, n_resampled=n_resampled, method=method,
                                longitudinal=self.params.longitudinal_name)
+
+
+def _series(inputs: StiffnessInputs) -> SeriesInputs:
+    """The particle filters' time series; the bias filter runs once the log has settled."""
+    return SeriesInputs(y=inputs.y, u=inputs.u, active=inputs.active, bias_on=inputs.settled)
 
 
 def _check_particles(particles: int) -> int:
@@ -186,6 +203,17 @@ class NoiseAdaptivePF(_Setup):
         super().__init__(vehicle, prior, config)
         self.particles = _check_particles(particles)
 
+    def kernel_params(self, inputs: StiffnessInputs) -> PFParams:
+        """The kernel's parameters for a run over ``inputs`` (Q, the bias inflation and the
+        forgetting period at the median step length)."""
+        c = self.config
+        return PFParams(p=self.p, r_pk=self.r_pk, q_pk=self.q_pk(inputs),
+                        bias_inflation=self.bias_inflation(inputs), lo=self.lo, hi=self.hi,
+                        forgetting=c.forgetting, forgetting_period=self.forgetting_period(inputs),
+                        n_thr=c.resample_threshold * self.particles,
+                        model_error=np.asarray(c.model_error, dtype=float),
+                        gyro_lookahead=c.gyro_lookahead)
+
     def run(self, inputs: StiffnessInputs, rng: np.random.Generator) -> StiffnessResult:
         """Filter the whole series; ``rng`` draws the initial particles and seeds the kernel's
         random stream (:mod:`~vestim.estimators.stiffness.draws`)."""
@@ -206,24 +234,11 @@ class NoiseAdaptivePF(_Setup):
         pb[:, PXX] = c.accel_bias_sd**2
         pb[:, PYY] = c.accel_bias_sd**2
         pb[:, PRR] = c.gyro_bias_sd**2
-        part = pack_particles(x, mu, lam, b, pb)
-        logw = np.full(n, -math.log(n))
-        shared = np.array([c.gamma0, c.nu0])
-        x_hat = np.empty((k, N_STATE))
-        x_var = np.empty((k, N_STATE))
-        w_hat = np.empty((k, N_W))
-        w_cov = np.empty((k, N_W, N_W))
-        b_hat = np.empty((k, 3))
-        ess = np.empty(k)
-        n_res = alg1_kernel(inputs.y, inputs.u, inputs.active, inputs.settled, self.p, self.r_pk,
-                            self.q_pk(inputs), self.bias_inflation(inputs), self.lo, self.hi,
-                            c.forgetting,
-                            self.forgetting_period(inputs), c.resample_threshold * n,
-                            np.asarray(c.model_error, dtype=float), part, logw, shared,
-                            seed_state(rng), x_hat, x_var, w_hat, w_cov, b_hat, ess,
-                            c.gyro_lookahead)
-        w_sd = np.sqrt(np.maximum(np.diagonal(w_cov, axis1=1, axis2=2), 0.0))
-        return self.result(inputs, w_hat, w_sd, x_hat, np.sqrt(x_var), b_hat, "pf", ess, n_res)
+        st = PFState(part=pack_particles(x, mu, lam, b, pb), logw=np.full(n, -math.log(n)),
+                     shared=np.array([c.gamma0, c.nu0]), rng_state=seed_state(rng))
+        out = new_estimates(k)
+        n_res = alg1_kernel(self.kernel_params(inputs), st, _series(inputs), out)
+        return self._estimates_result(inputs, out, "pf", n_res)
 
 
 @register("stiffness", "augpf", "particle filter on the state augmented with the stiffness",
@@ -238,6 +253,15 @@ class AugmentedPF(_Setup):
         if self.config.augpf_var_walk <= 0.0:
             raise ValueError("StiffnessConfig.augpf_var_walk must be > 0 for the AUGPF")
 
+    def kernel_params(self, inputs: StiffnessInputs) -> AugPFParams:
+        """The kernel's parameters for a run over ``inputs`` (Q at the median step length)."""
+        c = self.config
+        return AugPFParams(p=self.p, r_pk=self.r_pk, q_pk=self.q_pk(inputs), lo=self.lo,
+                           hi=self.hi, mean_walk=c.augpf_mean_walk * self.nominal_w,
+                           var_shape=2.0 + 1.0 / c.augpf_var_walk**2,
+                           n_thr=c.resample_threshold * self.particles,
+                           model_error=np.asarray(c.model_error, dtype=float))
+
     def run(self, inputs: StiffnessInputs, rng: np.random.Generator) -> StiffnessResult:
         """Filter the whole series; ``rng`` draws the initial particles and every random number."""
         n = self.particles
@@ -245,26 +269,15 @@ class AugmentedPF(_Setup):
         k = inputs.t.shape[0]
         x = self.x0(inputs) + rng.standard_normal((n, N_STATE)) * np.asarray(c.initial_state_sd)
         m = np.clip(rng.standard_normal((n, N_W)) * self.sigma_w, self.lo, self.hi)
-        s = np.tile((c.augpf_initial_sd * self.nominal_w) ** 2, (n, 1))
-        b = np.zeros((n, 3))
         pb = np.zeros((n, N_PB))
         pb[:, PXX] = c.accel_bias_sd**2
         pb[:, PYY] = c.accel_bias_sd**2
         pb[:, PRR] = c.gyro_bias_sd**2
-        logw = np.full(n, -math.log(n))
-        x_hat = np.empty((k, N_STATE))
-        x_var = np.empty((k, N_STATE))
-        w_hat = np.empty((k, N_W))
-        w_cov = np.empty((k, N_W, N_W))
-        b_hat = np.empty((k, 3))
-        ess = np.empty(k)
-        shape = 2.0 + 1.0 / c.augpf_var_walk**2
-        n_res = augpf_kernel(inputs.y, inputs.u, inputs.settled, self.p, self.r_pk,
-                             self.q_pk(inputs), self.lo, self.hi, c.augpf_mean_walk * self.nominal_w, shape,
-                             c.resample_threshold * n, np.asarray(c.model_error, dtype=float),
-                             x, m, s, b, pb, logw, rng, x_hat, x_var, w_hat, w_cov, b_hat, ess)
-        w_sd = np.sqrt(np.maximum(np.diagonal(w_cov, axis1=1, axis2=2), 0.0))
-        return self.result(inputs, w_hat, w_sd, x_hat, np.sqrt(x_var), b_hat, "augpf", ess, n_res)
+        st = AugPFState(x=x, m=m, s=np.tile((c.augpf_initial_sd * self.nominal_w) ** 2, (n, 1)),
+                        b=np.zeros((n, 3)), pb=pb, logw=np.full(n, -math.log(n)))
+        out = new_estimates(k)
+        n_res = augpf_kernel(self.kernel_params(inputs), st, _series(inputs), rng, out)
+        return self._estimates_result(inputs, out, "augpf", n_res)
 
 
 @register("stiffness", "rls", "RLS for the stiffness fed by a Kalman filter of the lateral "
