@@ -17,7 +17,14 @@ import pandas as pd
 
 from vestim.estimators.registry import register, registered
 from vestim.estimators.stiffness.augpf import AugPFParams, AugPFState, augpf_kernel
-from vestim.estimators.stiffness.baselines import ekf_kernel, rls_kf_kernel
+from vestim.estimators.stiffness.baselines import (
+    RlsEstimates,
+    RlsInputs,
+    RlsParams,
+    RlsState,
+    ekf_kernel,
+    rls_kf_kernel,
+)
 from vestim.estimators.stiffness.config import StiffnessConfig, StiffnessPrior
 from vestim.estimators.stiffness.draws import seed_state
 from vestim.estimators.stiffness.inputs import StiffnessInputs, prepare_inputs
@@ -290,6 +297,15 @@ class RlsKalman(_Setup):
     reference R·ω of the slower axle.
     """
 
+    def kernel_params(self, inputs: StiffnessInputs) -> RlsParams:
+        """The kernel's parameters for a run over ``inputs`` (the lateral process noise per
+        step at the median step length)."""
+        c = self.config
+        ts = float(np.median(inputs.u[:, U_DT]))
+        return RlsParams(p=self.p, r_diag=self.r_diag,
+                         q_lat=(np.asarray(c.model_error[1:], dtype=float) * ts) ** 2,
+                         lo=self.lo, hi=self.hi, forgetting=c.rls_forgetting, cutoff=c.rls_cutoff)
+
     def run(self, inputs: StiffnessInputs, vx: np.ndarray | None = None) -> StiffnessResult:
         """Filter the whole series (deterministic)."""
         c = self.config
@@ -297,20 +313,14 @@ class RlsKalman(_Setup):
         v = inputs.speed if vx is None else np.asarray(vx, dtype=float)
         if v.shape != (k,) or not np.all(np.isfinite(v)):
             raise ValueError(f"vx must be a finite array of shape ({k},)")
-        ts = float(np.median(inputs.u[:, U_DT]))
-        q_lat = (np.asarray(c.model_error[1:], dtype=float) * ts) ** 2
-        theta = np.zeros(N_W)
-        p_rls = np.diag(self.sigma_w**2)
-        z = np.array([0.0, inputs.y[0, YAW_RATE]])
-        p_kf = np.diag([c.initial_state_sd[1] ** 2, c.initial_state_sd[2] ** 2])
-        x_out = np.empty((k, N_STATE))
-        x_sd = np.empty((k, N_STATE))
-        w_out = np.empty((k, N_W))
-        w_sd = np.empty((k, N_W))
-        rls_kf_kernel(inputs.y, inputs.u, v, inputs.active, self.p, self.r_diag, q_lat, self.lo,
-                      self.hi, theta, p_rls, z, p_kf, c.rls_forgetting, c.rls_cutoff, x_out, x_sd,
-                      w_out, w_sd)
-        return self.result(inputs, w_out, w_sd, x_out, x_sd, np.zeros((k, 3)), "rls")
+        st = RlsState(theta=np.zeros(N_W), p_rls=np.diag(self.sigma_w**2),
+                      z=np.array([0.0, inputs.y[0, YAW_RATE]]),
+                      p_kf=np.diag([c.initial_state_sd[1] ** 2, c.initial_state_sd[2] ** 2]))
+        out = RlsEstimates(x=np.empty((k, N_STATE)), x_sd=np.empty((k, N_STATE)),
+                           w=np.empty((k, N_W)), w_sd=np.empty((k, N_W)))
+        rls_kf_kernel(self.kernel_params(inputs), st,
+                      RlsInputs(y=inputs.y, u=inputs.u, vx=v, active=inputs.active), out)
+        return self.result(inputs, out.w, out.w_sd, out.x, out.x_sd, np.zeros((k, 3)), "rls")
 
 
 @register("stiffness", "ekf", "EKF on [v_x, v_y, ψ̇, ΔC, bias]", cite="002 Sec. V",
