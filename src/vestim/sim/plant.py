@@ -42,7 +42,7 @@ wheel is −f·Fz, as a wheel-force transducer would read).
 from __future__ import annotations
 
 import math
-from typing import Any
+from typing import Any, NamedTuple
 
 import numpy as np
 from numba import njit
@@ -110,6 +110,77 @@ REC_NAMES: tuple[str, ...] = (
     "x", "y", "yaw", "distance", "grade", "bank",
 )
 N_REC = len(REC_NAMES)
+
+
+class RoadTables(NamedTuple):
+    """The road under the wheels, tabulated (:class:`~vestim.sim.road.Road`).
+
+    Attributes:
+        knots: (K,) s, or m of travelled distance where ``by_distance``.
+        mu, scale: (K, 4) friction coefficient and tire stiffness factor per wheel (fl, fr, rl, rr).
+        by_distance: the tables run over distance (else time).
+        geo_knots: (G,) m of travelled distance. grade, bank: (G,) rad.
+    """
+
+    knots: np.ndarray
+    mu: np.ndarray
+    scale: np.ndarray
+    by_distance: bool
+    geo_knots: np.ndarray
+    grade: np.ndarray
+    bank: np.ndarray
+
+
+class PlantParams(NamedTuple):
+    """What :func:`simulate_kernel` holds fixed over a run (packed by
+    :func:`vestim.sim.simulate.kernel_params`).
+
+    Attributes:
+        p: (``N_PARAM``,) vehicle and maneuver parameters (``P_*``, SI).
+        xw, yw: (4,) wheel positions from the CG, body frame (m).
+        dt: integration step (s). stride: steps per recorded row.
+        road: the road tables (:class:`RoadTables`).
+        theta_mu, theta_val: θ(μ) of the LuGre plant, interpolated in μ.
+    """
+
+    p: np.ndarray
+    xw: np.ndarray
+    yw: np.ndarray
+    dt: float
+    stride: int
+    road: RoadTables
+    theta_mu: np.ndarray
+    theta_val: np.ndarray
+
+
+class PlantState(NamedTuple):
+    """What :func:`simulate_kernel` advances in place between chunks.
+
+    Attributes:
+        x: (``N_STATE``,) the plant state (layout ``DIST`` … ``FY_LAG``).
+        ctrl: (9,) controller memory: traction-control torque factors (4), ABS brake-torque
+            factors (4), the speed-hold integrator (m).
+    """
+
+    x: np.ndarray
+    ctrl: np.ndarray
+
+
+class DriverInputs(NamedTuple):
+    """Per-step inputs of :func:`simulate_kernel` (zero-order hold over a step).
+
+    Attributes:
+        delta_fl, delta_fr: road-wheel angles (rad).
+        throttle, brake: pedal positions in [0, 1].
+        v_target: target speed of the driver's speed hold (m/s), NaN where the pedals are
+            open-loop.
+    """
+
+    delta_fl: np.ndarray
+    delta_fr: np.ndarray
+    throttle: np.ndarray
+    brake: np.ndarray
+    v_target: np.ndarray
 
 
 @njit(**_JIT)
@@ -285,30 +356,28 @@ def _interp_col(xq: float, knots: np.ndarray, values: np.ndarray, col: int) -> f
 
 
 @njit(**_JIT)
-def simulate_kernel(
-    x0: np.ndarray, p: np.ndarray, xw: np.ndarray, yw: np.ndarray, dt: float, stride: int,
-    delta_fl: np.ndarray, delta_fr: np.ndarray, throttle: np.ndarray, brake: np.ndarray,
-    v_target: np.ndarray,
-    road_knots: np.ndarray, road_mu: np.ndarray, road_scale: np.ndarray, road_by_distance: bool,
-    geo_knots: np.ndarray, geo_grade: np.ndarray, geo_bank: np.ndarray,
-    theta_mu: np.ndarray, theta_val: np.ndarray, k0: int, ctrl: np.ndarray,
-) -> np.ndarray:
-    """Integrate the plant over ``len(throttle)`` steps of ``dt`` (ETDRK4); record every ``stride`` steps.
+def simulate_kernel(prm: PlantParams, st: PlantState, inp: DriverInputs, k0: int) -> np.ndarray:
+    """Integrate the plant over the steps of ``inp`` (ETDRK4 at ``prm.dt``); record every
+    ``prm.stride`` steps.
 
-    Inputs are per simulation step (zero-order hold over the step): road-wheel
-    angles (rad), pedal positions in [0, 1], and a target speed in m/s for the
-    driver's speed-hold loop (NaN where the pedals are open-loop). The road is
-    tabulated over time or travelled distance (``road_by_distance``): μ and a
-    stiffness factor per wheel, shape (K, 4); grade and bank (rad) over distance.
-    θ(μ) for the LuGre plant is interpolated from (``theta_mu``, ``theta_val``).
+    The road is tabulated over time or travelled distance (``prm.road``): μ and a stiffness
+    factor per wheel, grade and bank (rad) over distance. θ(μ) for the LuGre plant is
+    interpolated from (``theta_mu``, ``theta_val``).
 
-    The kernel may be called in chunks: ``x0`` (the state) and ``ctrl`` (the
-    controller memory: TC factors, ABS factors, speed-hold integrator, 9 values)
-    are updated in place, and ``k0`` is the index of the chunk's first step.
+    The kernel may be called in chunks: ``st`` (the state and the controller memory) is
+    updated in place, and ``k0`` is the index of the chunk's first step.
 
     Returns:
         Array (n_records, N_REC) with the columns of :data:`REC_NAMES`.
     """
+    p, xw, yw, dt, stride = prm.p, prm.xw, prm.yw, prm.dt, prm.stride
+    road_knots, road_mu, road_scale = prm.road.knots, prm.road.mu, prm.road.scale
+    road_by_distance = prm.road.by_distance
+    geo_knots, geo_grade, geo_bank = prm.road.geo_knots, prm.road.grade, prm.road.bank
+    theta_mu, theta_val = prm.theta_mu, prm.theta_val
+    delta_fl, delta_fr, throttle, brake = inp.delta_fl, inp.delta_fr, inp.throttle, inp.brake
+    v_target = inp.v_target
+    x0, ctrl = st.x, st.ctrl
     n = throttle.shape[0]
     n_rec = (n + stride - 1) // stride
     rec = np.empty((n_rec, N_REC))
@@ -520,4 +589,5 @@ def _record(row: np.ndarray, t: float, x: np.ndarray, p: np.ndarray, out: np.nda
     row[62] = bank
 
 
-__all__ = ["N_PARAM", "N_STATE", "REC_NAMES", "simulate_kernel"]
+__all__ = ["N_PARAM", "N_STATE", "REC_NAMES", "DriverInputs", "PlantParams", "PlantState",
+           "RoadTables", "simulate_kernel"]

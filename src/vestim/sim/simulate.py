@@ -78,6 +78,35 @@ def _theta_table(vehicle: Vehicle, maneuver: Maneuver) -> tuple[np.ndarray, np.n
     return grid, np.array([lugre_theta_for_mu(m, vehicle.tire) for m in grid])
 
 
+def kernel_params(vehicle: Vehicle, maneuver: Maneuver, dt: float, stride: int,
+                  roll_scale: float = 1.0) -> P.PlantParams:
+    """Everything :func:`~vestim.sim.plant.simulate_kernel` holds fixed over a run.
+
+    Args:
+        vehicle, maneuver: the run.
+        dt: integration step (s). stride: integration steps per recorded row.
+        roll_scale: the roll stiffness and damping of the plant are the vehicle's divided by
+            this (see :func:`simulate`).
+    """
+    if not (math.isfinite(roll_scale) and roll_scale > 0):
+        raise ValueError(f"roll_scale = {roll_scale} must be > 0")
+    p = plant_parameters(vehicle, maneuver)
+    p[P.P_KPHI] /= roll_scale
+    p[P.P_CPHI] /= roll_scale
+    body = vehicle.body
+    road = maneuver.road
+    theta_mu, theta_val = _theta_table(vehicle, maneuver)
+    return P.PlantParams(
+        p=p, xw=np.array([body.lf, body.lf, -body.lr, -body.lr]),
+        yw=np.array([body.track_f, -body.track_f, body.track_r, -body.track_r]) * 0.5,
+        dt=dt, stride=stride,
+        road=P.RoadTables(knots=np.asarray(road.knots, float), mu=np.asarray(road.mu, float),
+                          scale=np.asarray(road.stiffness, float), by_distance=road.by_distance,
+                          geo_knots=np.asarray(road.geo_knots, float),
+                          grade=np.asarray(road.grade, float), bank=np.asarray(road.bank, float)),
+        theta_mu=theta_mu, theta_val=theta_val)
+
+
 def initial_state(vehicle: Vehicle, maneuver: Maneuver) -> np.ndarray:
     """Straight driving at v0 with free-rolling wheels, body at rest relative to the road."""
     x0 = np.zeros(P.N_STATE)
@@ -142,29 +171,17 @@ def simulate(
     brake = np.clip(np.asarray(m.brake(t), dtype=float), 0.0, 1.0)
     v_target = np.asarray(m.speed(t), dtype=float)
 
-    if not (math.isfinite(roll_scale) and roll_scale > 0):
-        raise ValueError(f"roll_scale = {roll_scale} must be > 0")
-    p = plant_parameters(veh, m)
-    p[P.P_KPHI] /= roll_scale
-    p[P.P_CPHI] /= roll_scale
-    xw = np.array([body.lf, body.lf, -body.lr, -body.lr])
-    yw = np.array([body.track_f, -body.track_f, body.track_r, -body.track_r]) * 0.5
-    theta_mu, theta_val = _theta_table(veh, m)
-    road = m.road
-    x = initial_state(veh, m)
-    ctrl = np.array([1.0] * 8 + [0.0])
+    prm = kernel_params(veh, m, dt, stride, roll_scale)
+    st = P.PlantState(x=initial_state(veh, m), ctrl=np.array([1.0] * 8 + [0.0]))
 
     chunk = stride * max(1, int(2.0 * sensors.rate))  # two seconds of samples per call
     pieces = []
     for k0 in range(0, n_steps, chunk):
         k1 = min(k0 + chunk, n_steps)
-        pieces.append(P.simulate_kernel(
-            x, p, xw, yw, dt, stride, d_fl[k0:k1], d_fr[k0:k1], throttle[k0:k1], brake[k0:k1],
-            v_target[k0:k1], np.asarray(road.knots, float), np.asarray(road.mu, float),
-            np.asarray(road.stiffness, float), road.by_distance,
-            np.asarray(road.geo_knots, float), np.asarray(road.grade, float),
-            np.asarray(road.bank, float), theta_mu, theta_val, k0, ctrl))
-        if not np.all(np.isfinite(x)):
+        inp = P.DriverInputs(delta_fl=d_fl[k0:k1], delta_fr=d_fr[k0:k1], throttle=throttle[k0:k1],
+                             brake=brake[k0:k1], v_target=v_target[k0:k1])
+        pieces.append(P.simulate_kernel(prm, st, inp, k0))
+        if not np.all(np.isfinite(st.x)):
             raise FloatingPointError(f"plant diverged near t = {k1 * dt:.3f} s in {m.name!r}")
         if progress is not None:
             progress(k1 / n_steps)

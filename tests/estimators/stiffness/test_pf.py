@@ -35,8 +35,13 @@ from vestim.estimators.stiffness.pf import (
     PXX,
     PXY,
     PYY,
+    Estimates,
+    PFParams,
+    PFState,
+    SeriesInputs,
     alg1_kernel,
     bias_update,
+    new_estimates,
     pack_particles,
 )
 from vestim.filters.linalg import chol_logdet, cholesky
@@ -211,9 +216,12 @@ def test_kernel_equals_the_generic_functions(lookahead):
     part = pack_particles(x, mu, lam, b, pb)
     shared = np.array([gamma, nu])
     logwk = logw.copy()
-    alg1_kernel(y, u, active, bias_on, p, r_pk, q_pk, 1.0, lo, hi, forget, 0.005, 0.0, model_error, part,
-                logwk, shared, state, out["xh"], out["xv"], out["wh"], out["wc"], out["bh"], out["ess"],
-                lookahead)
+    prm = PFParams(p=p, r_pk=r_pk, q_pk=q_pk, bias_inflation=1.0, lo=lo, hi=hi, forgetting=forget,
+                   forgetting_period=0.005, n_thr=0.0, model_error=model_error,
+                   gyro_lookahead=lookahead)
+    alg1_kernel(prm, PFState(part=part, logw=logwk, shared=shared, rng_state=state),
+                SeriesInputs(y=y, u=u, active=active, bias_on=bias_on),
+                Estimates(out["xh"], out["xv"], out["wh"], out["wc"], out["bh"], out["ess"]))
     x_r, mu_r, lam_r, b_r, pb_r, logw_r, gamma_r, nu_r, est = ref
     np.testing.assert_allclose(part[:, C_X:C_X + 3], x_r, rtol=1e-8)
     np.testing.assert_allclose(part[:, C_MU:C_MU + 3], mu_r, rtol=1e-8)
@@ -244,17 +252,20 @@ def test_resampling_copies_whole_particles():
     lam = np.zeros((n, 6))
     lam[:, L00], lam[:, L11], lam[:, L22] = 16 * 30e3**2, 16 * 20e3**2, 16 * 20e3**2
     pb = np.tile([0.05**2, 0.0, 0.05**2, 0.002**2], (n, 1))
-    args = (np.array([[0.8, 2.1, 0.09]]), np.array([[0.015, 68.0, 67.0, 0.005]]), np.array([True]),
-            np.array([True]), params.pack(), np.array([0.05**2, 0.0, 0.05**2, 0.003**2]), np.zeros(4),
-            1.0, np.full(3, -1e9), np.full(3, 1e9), 0.99, 0.005)
+    inp = SeriesInputs(y=np.array([[0.8, 2.1, 0.09]]), u=np.array([[0.015, 68.0, 67.0, 0.005]]),
+                       active=np.array([True]), bias_on=np.array([True]))
     results = []
     for n_thr in (0.0, float(n)):
         part = pack_particles(x, mu, lam, np.zeros((n, 3)), pb)
         logw = np.full(n, -math.log(n))
-        outs = [np.empty((1, 3)), np.empty((1, 3)), np.empty((1, 3)), np.empty((1, 3, 3)),
-                np.empty((1, 3)), np.empty(1)]
-        n_res = alg1_kernel(*args, n_thr, np.zeros(3), part, logw, np.array([0.1, 20.0]),
-                            seed_state(np.random.default_rng(11)), *outs)
+        outs = Estimates(np.empty((1, 3)), np.empty((1, 3)), np.empty((1, 3)), np.empty((1, 3, 3)),
+                         np.empty((1, 3)), np.empty(1))
+        prm = PFParams(p=params.pack(), r_pk=np.array([0.05**2, 0.0, 0.05**2, 0.003**2]),
+                       q_pk=np.zeros(4), bias_inflation=1.0, lo=np.full(3, -1e9), hi=np.full(3, 1e9),
+                       forgetting=0.99, forgetting_period=0.005, n_thr=n_thr, model_error=np.zeros(3),
+                       gyro_lookahead=False)
+        n_res = alg1_kernel(prm, PFState(part=part, logw=logw, shared=np.array([0.1, 20.0]),
+                                         rng_state=seed_state(np.random.default_rng(11))), inp, outs)
         results.append((part, logw, n_res, outs))
     (plain, logw_plain, n0, _), (resampled, logw_res, n1, _) = results
     assert (n0, n1) == (0, 1)
@@ -277,12 +288,14 @@ def test_forgetting_per_period():
     y = np.tile([0.8, 2.1, 0.02], (k, 1))
     u = np.tile([0.015, 68.0, 67.0, 0.005], (k, 1))
     shared = np.array([0.1, 20.0])
-    outs = [np.empty((k, 3)), np.empty((k, 3)), np.empty((k, 3)), np.empty((k, 3, 3)),
-            np.empty((k, 3)), np.empty(k)]
-    alg1_kernel(y, u, np.ones(k, bool), np.zeros(k, bool), params.pack(), np.array([2.5e-3, 0, 2.5e-3, 9e-6]),
-                np.zeros(4), 1.0, np.full(3, -1e9), np.full(3, 1e9), 0.99, 0.010, 0.0, np.zeros(3),
-                pack_particles(x, np.zeros((n, 3)), lam, np.zeros((n, 3)), np.zeros((n, 4))),
-                np.full(n, -math.log(n)), shared, seed_state(np.random.default_rng(0)), *outs)
+    prm = PFParams(p=params.pack(), r_pk=np.array([2.5e-3, 0, 2.5e-3, 9e-6]), q_pk=np.zeros(4),
+                   bias_inflation=1.0, lo=np.full(3, -1e9), hi=np.full(3, 1e9), forgetting=0.99,
+                   forgetting_period=0.010, n_thr=0.0, model_error=np.zeros(3), gyro_lookahead=False)
+    st = PFState(part=pack_particles(x, np.zeros((n, 3)), lam, np.zeros((n, 3)), np.zeros((n, 4))),
+                 logw=np.full(n, -math.log(n)), shared=shared,
+                 rng_state=seed_state(np.random.default_rng(0)))
+    alg1_kernel(prm, st, SeriesInputs(y=y, u=u, active=np.ones(k, bool), bias_on=np.zeros(k, bool)),
+                new_estimates(k))
     lam_step = math.sqrt(0.99)
     nu = 20.0
     gamma = 0.1

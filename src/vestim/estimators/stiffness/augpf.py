@@ -26,7 +26,7 @@ run at 200 Hz: a 5 % stiffness draw moves a_y by 0.12 m/s², 2.5 σ of the senso
 from __future__ import annotations
 
 import math
-from typing import Any
+from typing import Any, NamedTuple
 
 import numpy as np
 from numba import njit
@@ -52,6 +52,8 @@ from vestim.estimators.stiffness.pf import (
     PXX,
     PXY,
     PYY,
+    Estimates,
+    SeriesInputs,
     bias_update,
     state_uncertainty,
     weighted_state_moments,
@@ -61,29 +63,67 @@ from vestim.filters.resampling import effective_sample_size, normalize_log_weigh
 _JIT: dict[str, Any] = {"cache": True, "error_model": "numpy"}
 
 
+class AugPFParams(NamedTuple):
+    """What :func:`augpf_kernel` holds fixed over a run (packed by
+    :meth:`~vestim.estimators.stiffness.estimator.AugmentedPF.kernel_params`).
+
+    Attributes:
+        p, r_pk, q_pk, lo, hi, n_thr, model_error: as in
+            :class:`~vestim.estimators.stiffness.pf.PFParams`.
+        mean_walk: (3,) one-sigma of the random walk of m per step (N per unit slip, N/rad, N/rad).
+        var_shape: α of the inverse-gamma step of s (≥ 2; mean-preserving).
+    """
+
+    p: np.ndarray
+    r_pk: np.ndarray
+    q_pk: np.ndarray
+    lo: np.ndarray
+    hi: np.ndarray
+    mean_walk: np.ndarray
+    var_shape: float
+    n_thr: float
+    model_error: np.ndarray
+
+
+class AugPFState(NamedTuple):
+    """What :func:`augpf_kernel` advances in place, one row per particle.
+
+    Attributes:
+        x: (N, 3) states [v_x, v_y, ψ̇] (m/s, m/s, rad/s).
+        m, s: (N, 3) means and variances of w (N per unit slip, N/rad, N/rad and squares).
+        b: (N, 3) bias means (m/s², m/s², rad/s). pb: (N, 4) bias covariances, packed like
+            P (``pf.PXX`` …). logw: (N,) log weights.
+    """
+
+    x: np.ndarray
+    m: np.ndarray
+    s: np.ndarray
+    b: np.ndarray
+    pb: np.ndarray
+    logw: np.ndarray
+
+
 @njit(**_JIT)
-def augpf_kernel(y: np.ndarray, u: np.ndarray, bias_on: np.ndarray, p: np.ndarray,
-                 r_pk: np.ndarray, q_pk: np.ndarray,
-                 lo: np.ndarray, hi: np.ndarray, mean_walk: np.ndarray, var_shape: float,
-                 n_thr: float, model_error: np.ndarray,
-                 x: np.ndarray, m: np.ndarray, s: np.ndarray, b: np.ndarray, pb: np.ndarray,
-                 logw: np.ndarray, rng: np.random.Generator,
-                 x_hat: np.ndarray, x_var: np.ndarray, w_hat: np.ndarray, w_cov: np.ndarray,
-                 b_hat: np.ndarray, ess: np.ndarray) -> int:
-    """Run the AUGPF over K steps; particle arrays are updated in place.
+def augpf_kernel(prm: AugPFParams, st: AugPFState, inp: SeriesInputs, rng: np.random.Generator,
+                 out: Estimates) -> int:
+    """Run the AUGPF over the K steps of ``inp`` (``inp.active`` is not read); ``st`` is
+    updated in place.
 
     Args:
-        y, u, bias_on, p, r_pk, q_pk, lo, hi, n_thr, model_error: as in
-            :func:`~vestim.estimators.stiffness.pf.alg1_kernel`.
-        mean_walk: (3,) one-sigma of the random walk of m per step (N, N/rad, N/rad).
-        var_shape: α of the inverse-gamma step of s (≥ 2; mean-preserving).
-        x: (N, 3) states. m: (N, 3) means, s: (N, 3) variances of w.
-        b, pb, logw, rng: as in Algorithm 1.
-        x_hat, x_var, w_hat, w_cov, b_hat, ess: outputs as in Algorithm 1.
+        prm: the run's parameters (:class:`AugPFParams`).
+        st: the particles (:class:`AugPFState`).
+        inp: y, u, bias_on as in :func:`~vestim.estimators.stiffness.pf.alg1_kernel`.
+        rng: draws every random number.
+        out: ← the estimates of each step, as in Algorithm 1.
 
     Returns:
         The number of resampling events.
     """
+    y, u, bias_on = inp.y, inp.u, inp.bias_on
+    p, r_pk, q_pk, lo, hi = prm.p, prm.r_pk, prm.q_pk, prm.lo, prm.hi
+    mean_walk, var_shape, n_thr, model_error = prm.mean_walk, prm.var_shape, prm.n_thr, prm.model_error
+    x, m, s, b, pb, logw = st.x, st.m, st.s, st.b, st.pb, st.logw
+    x_hat, x_var, w_hat, w_cov, b_hat, ess = out.x_hat, out.x_var, out.w_hat, out.w_cov, out.b_hat, out.ess
     n_part = x.shape[0]
     q = np.empty(n_part)
     idx = np.empty(n_part, dtype=np.int64)

@@ -32,7 +32,7 @@ Both Kalman measurement updates are :func:`vestim.filters.kalman.kalman_update`
 from __future__ import annotations
 
 import math
-from typing import Any
+from typing import Any, NamedTuple
 
 import numpy as np
 from numba import njit
@@ -221,28 +221,87 @@ def _lp_step(state: np.ndarray, j: int, value: float, a: float) -> float:
     return state[j]
 
 
+class RlsParams(NamedTuple):
+    """What :func:`rls_kf_kernel` holds fixed over a run (packed by
+    :meth:`~vestim.estimators.stiffness.estimator.RlsKalman.kernel_params`).
+
+    Attributes:
+        p: model parameters (nominal stiffness and geometry, ``model.P_*``).
+        r_diag: (3,) measurement noise variances [a_x, a_y, ψ̇] (m²/s⁴, m²/s⁴, rad²/s²).
+        q_lat: (2,) process noise variances per step of [v_y, ψ̇] (m²/s², rad²/s²).
+        lo, hi: (3,) bounds of the deviation w (absolute stiffness = nominal + w; N per unit
+            slip, N/rad, N/rad).
+        forgetting: RLS forgetting factor (per step). cutoff: Hz of the regression low-pass.
+    """
+
+    p: np.ndarray
+    r_diag: np.ndarray
+    q_lat: np.ndarray
+    lo: np.ndarray
+    hi: np.ndarray
+    forgetting: float
+    cutoff: float
+
+
+class RlsState(NamedTuple):
+    """What :func:`rls_kf_kernel` advances in place.
+
+    Attributes:
+        theta: (3,) stiffness deviation [ΔC^x, ΔC_f^y, ΔC_r^y].
+        p_rls: (3, 3) RLS covariance (the longitudinal term is decoupled).
+        z: (2,) lateral state [v_y, ψ̇] (m/s, rad/s). p_kf: (2, 2) its covariance.
+    """
+
+    theta: np.ndarray
+    p_rls: np.ndarray
+    z: np.ndarray
+    p_kf: np.ndarray
+
+
+class RlsInputs(NamedTuple):
+    """The time series :func:`rls_kf_kernel` reads, one row per step.
+
+    Attributes:
+        y: (K, 3) measurements [a_x, a_y, ψ̇]. u: (K, 4) inputs [δ, ω_f, ω_r, T_s].
+        vx: (K,) longitudinal speed used by both filters (m/s).
+        active: (K,) activation (the RLS updates only on active steps).
+    """
+
+    y: np.ndarray
+    u: np.ndarray
+    vx: np.ndarray
+    active: np.ndarray
+
+
+class RlsEstimates(NamedTuple):
+    """The outputs of :func:`rls_kf_kernel`, one row per step.
+
+    Attributes:
+        x, x_sd: (K, 3) [v_x, v_y, ψ̇] (m/s, m/s, rad/s) and one-sigma (v_x given: sd 0).
+        w, w_sd: (K, 3) estimate of the deviation w and its one-sigma.
+    """
+
+    x: np.ndarray
+    x_sd: np.ndarray
+    w: np.ndarray
+    w_sd: np.ndarray
+
+
 @njit(**_JIT)
-def rls_kf_kernel(y: np.ndarray, u: np.ndarray, vx: np.ndarray, active: np.ndarray,
-                  p: np.ndarray, r_diag: np.ndarray, q_lat: np.ndarray, lo: np.ndarray,
-                  hi: np.ndarray, theta: np.ndarray, p_rls: np.ndarray, z: np.ndarray,
-                  p_kf: np.ndarray, forgetting: float, cutoff: float,
-                  x_out: np.ndarray, x_sd: np.ndarray, c_out: np.ndarray, c_sd: np.ndarray) -> None:
+def rls_kf_kernel(prm: RlsParams, st: RlsState, inp: RlsInputs, out: RlsEstimates) -> None:
     """Lateral Kalman filter + recursive least squares for the axle stiffness, K steps.
 
     Args:
-        y: (K, 3) measurements. u: (K, 4) inputs. vx: (K,) longitudinal speed used by both.
-        active: (K,) activation (the RLS updates only on active steps).
-        p: model parameters (nominal stiffness and geometry).
-        r_diag: (3,) measurement noise variances [a_x, a_y, ψ̇].
-        q_lat: (2,) process noise variances per step of [v_y, ψ̇].
-        lo, hi: (3,) bounds of the deviation w (absolute stiffness = nominal + w).
-        theta: (3,) stiffness deviation [ΔC^x, ΔC_f^y, ΔC_r^y] (in place).
-        p_rls: (3, 3) RLS covariance (in place; the longitudinal term is decoupled).
-        z: (2,) lateral state [v_y, ψ̇]; p_kf: (2, 2) its covariance (in place).
-        forgetting: RLS forgetting factor. cutoff: Hz of the regression low-pass.
-        x_out, x_sd: (K, 3) [v_x, v_y, ψ̇] and one-sigma (v_x given: sd 0).
-        c_out, c_sd: (K, 3) w estimate and one-sigma.
+        prm: the run's parameters (:class:`RlsParams`).
+        st: θ, the RLS covariance and the lateral Kalman filter (:class:`RlsState`), in place.
+        inp: y, u, v_x, activation over the K steps (:class:`RlsInputs`).
+        out: ← the estimates of each step (:class:`RlsEstimates`).
     """
+    p, r_diag, q_lat, lo, hi = prm.p, prm.r_diag, prm.q_lat, prm.lo, prm.hi
+    forgetting, cutoff = prm.forgetting, prm.cutoff
+    theta, p_rls, z, p_kf = st.theta, st.p_rls, st.z, st.p_kf
+    y, u, vx, active = inp.y, inp.u, inp.vx, inp.active
+    x_out, x_sd, c_out, c_sd = out.x, out.x_sd, out.w, out.w_sd
     m = p[P_M]
     iz = p[P_IZ]
     lf = p[P_LF]

@@ -16,8 +16,15 @@ import numpy as np
 import pandas as pd
 
 from vestim.estimators.registry import register, registered
-from vestim.estimators.stiffness.augpf import augpf_kernel
-from vestim.estimators.stiffness.baselines import ekf_kernel, rls_kf_kernel
+from vestim.estimators.stiffness.augpf import AugPFParams, AugPFState, augpf_kernel
+from vestim.estimators.stiffness.baselines import (
+    RlsEstimates,
+    RlsInputs,
+    RlsParams,
+    RlsState,
+    ekf_kernel,
+    rls_kf_kernel,
+)
 from vestim.estimators.stiffness.config import StiffnessConfig, StiffnessPrior
 from vestim.estimators.stiffness.draws import seed_state
 from vestim.estimators.stiffness.inputs import StiffnessInputs, prepare_inputs
@@ -40,7 +47,12 @@ from vestim.estimators.stiffness.pf import (
     PRR,
     PXX,
     PYY,
+    Estimates,
+    PFParams,
+    PFState,
+    SeriesInputs,
     alg1_kernel,
+    new_estimates,
     pack_particles,
 )
 from vestim.io.vehicle import Vehicle
@@ -145,6 +157,13 @@ class _Setup:
         """Initial mean [v_x, v_y, ψ̇]: wheel-speed reference, 0, measured yaw rate."""
         return np.array([inputs.speed[0], 0.0, inputs.y[0, YAW_RATE]])
 
+    def _estimates_result(self, inputs: StiffnessInputs, out: Estimates, method: str,
+                          n_resampled: int) -> StiffnessResult:
+        """:meth:`result` of a particle filter's :class:`~vestim.estimators.stiffness.pf.Estimates`."""
+        w_sd = np.sqrt(np.maximum(np.diagonal(out.w_cov, axis1=1, axis2=2), 0.0))
+        return self.result(inputs, out.w_hat, w_sd, out.x_hat, np.sqrt(out.x_var), out.b_hat,
+                           method, out.ess, n_resampled)
+
     def result(self, inputs: StiffnessInputs, w_hat: np.ndarray, w_sd: np.ndarray,
                state: np.ndarray, state_sd: np.ndarray, bias: np.ndarray, method: str,
                ess: np.ndarray | None = None, n_resampled: int = 0) -> StiffnessResult:
@@ -160,6 +179,11 @@ class _Setup:
                                state_sd=state_sd, bias=bias_raw, active=inputs.active,
                                ess=ess, n_resampled=n_resampled, method=method,
                                longitudinal=self.params.longitudinal_name)
+
+
+def _series(inputs: StiffnessInputs) -> SeriesInputs:
+    """The particle filters' time series; the bias filter runs once the log has settled."""
+    return SeriesInputs(y=inputs.y, u=inputs.u, active=inputs.active, bias_on=inputs.settled)
 
 
 def _check_particles(particles: int) -> int:
@@ -186,6 +210,17 @@ class NoiseAdaptivePF(_Setup):
         super().__init__(vehicle, prior, config)
         self.particles = _check_particles(particles)
 
+    def kernel_params(self, inputs: StiffnessInputs) -> PFParams:
+        """The kernel's parameters for a run over ``inputs`` (Q, the bias inflation and the
+        forgetting period at the median step length)."""
+        c = self.config
+        return PFParams(p=self.p, r_pk=self.r_pk, q_pk=self.q_pk(inputs),
+                        bias_inflation=self.bias_inflation(inputs), lo=self.lo, hi=self.hi,
+                        forgetting=c.forgetting, forgetting_period=self.forgetting_period(inputs),
+                        n_thr=c.resample_threshold * self.particles,
+                        model_error=np.asarray(c.model_error, dtype=float),
+                        gyro_lookahead=c.gyro_lookahead)
+
     def run(self, inputs: StiffnessInputs, rng: np.random.Generator) -> StiffnessResult:
         """Filter the whole series; ``rng`` draws the initial particles and seeds the kernel's
         random stream (:mod:`~vestim.estimators.stiffness.draws`)."""
@@ -206,24 +241,11 @@ class NoiseAdaptivePF(_Setup):
         pb[:, PXX] = c.accel_bias_sd**2
         pb[:, PYY] = c.accel_bias_sd**2
         pb[:, PRR] = c.gyro_bias_sd**2
-        part = pack_particles(x, mu, lam, b, pb)
-        logw = np.full(n, -math.log(n))
-        shared = np.array([c.gamma0, c.nu0])
-        x_hat = np.empty((k, N_STATE))
-        x_var = np.empty((k, N_STATE))
-        w_hat = np.empty((k, N_W))
-        w_cov = np.empty((k, N_W, N_W))
-        b_hat = np.empty((k, 3))
-        ess = np.empty(k)
-        n_res = alg1_kernel(inputs.y, inputs.u, inputs.active, inputs.settled, self.p, self.r_pk,
-                            self.q_pk(inputs), self.bias_inflation(inputs), self.lo, self.hi,
-                            c.forgetting,
-                            self.forgetting_period(inputs), c.resample_threshold * n,
-                            np.asarray(c.model_error, dtype=float), part, logw, shared,
-                            seed_state(rng), x_hat, x_var, w_hat, w_cov, b_hat, ess,
-                            c.gyro_lookahead)
-        w_sd = np.sqrt(np.maximum(np.diagonal(w_cov, axis1=1, axis2=2), 0.0))
-        return self.result(inputs, w_hat, w_sd, x_hat, np.sqrt(x_var), b_hat, "pf", ess, n_res)
+        st = PFState(part=pack_particles(x, mu, lam, b, pb), logw=np.full(n, -math.log(n)),
+                     shared=np.array([c.gamma0, c.nu0]), rng_state=seed_state(rng))
+        out = new_estimates(k)
+        n_res = alg1_kernel(self.kernel_params(inputs), st, _series(inputs), out)
+        return self._estimates_result(inputs, out, "pf", n_res)
 
 
 @register("stiffness", "augpf", "particle filter on the state augmented with the stiffness",
@@ -238,6 +260,15 @@ class AugmentedPF(_Setup):
         if self.config.augpf_var_walk <= 0.0:
             raise ValueError("StiffnessConfig.augpf_var_walk must be > 0 for the AUGPF")
 
+    def kernel_params(self, inputs: StiffnessInputs) -> AugPFParams:
+        """The kernel's parameters for a run over ``inputs`` (Q at the median step length)."""
+        c = self.config
+        return AugPFParams(p=self.p, r_pk=self.r_pk, q_pk=self.q_pk(inputs), lo=self.lo,
+                           hi=self.hi, mean_walk=c.augpf_mean_walk * self.nominal_w,
+                           var_shape=2.0 + 1.0 / c.augpf_var_walk**2,
+                           n_thr=c.resample_threshold * self.particles,
+                           model_error=np.asarray(c.model_error, dtype=float))
+
     def run(self, inputs: StiffnessInputs, rng: np.random.Generator) -> StiffnessResult:
         """Filter the whole series; ``rng`` draws the initial particles and every random number."""
         n = self.particles
@@ -245,26 +276,15 @@ class AugmentedPF(_Setup):
         k = inputs.t.shape[0]
         x = self.x0(inputs) + rng.standard_normal((n, N_STATE)) * np.asarray(c.initial_state_sd)
         m = np.clip(rng.standard_normal((n, N_W)) * self.sigma_w, self.lo, self.hi)
-        s = np.tile((c.augpf_initial_sd * self.nominal_w) ** 2, (n, 1))
-        b = np.zeros((n, 3))
         pb = np.zeros((n, N_PB))
         pb[:, PXX] = c.accel_bias_sd**2
         pb[:, PYY] = c.accel_bias_sd**2
         pb[:, PRR] = c.gyro_bias_sd**2
-        logw = np.full(n, -math.log(n))
-        x_hat = np.empty((k, N_STATE))
-        x_var = np.empty((k, N_STATE))
-        w_hat = np.empty((k, N_W))
-        w_cov = np.empty((k, N_W, N_W))
-        b_hat = np.empty((k, 3))
-        ess = np.empty(k)
-        shape = 2.0 + 1.0 / c.augpf_var_walk**2
-        n_res = augpf_kernel(inputs.y, inputs.u, inputs.settled, self.p, self.r_pk,
-                             self.q_pk(inputs), self.lo, self.hi, c.augpf_mean_walk * self.nominal_w, shape,
-                             c.resample_threshold * n, np.asarray(c.model_error, dtype=float),
-                             x, m, s, b, pb, logw, rng, x_hat, x_var, w_hat, w_cov, b_hat, ess)
-        w_sd = np.sqrt(np.maximum(np.diagonal(w_cov, axis1=1, axis2=2), 0.0))
-        return self.result(inputs, w_hat, w_sd, x_hat, np.sqrt(x_var), b_hat, "augpf", ess, n_res)
+        st = AugPFState(x=x, m=m, s=np.tile((c.augpf_initial_sd * self.nominal_w) ** 2, (n, 1)),
+                        b=np.zeros((n, 3)), pb=pb, logw=np.full(n, -math.log(n)))
+        out = new_estimates(k)
+        n_res = augpf_kernel(self.kernel_params(inputs), st, _series(inputs), rng, out)
+        return self._estimates_result(inputs, out, "augpf", n_res)
 
 
 @register("stiffness", "rls", "RLS for the stiffness fed by a Kalman filter of the lateral "
@@ -277,6 +297,15 @@ class RlsKalman(_Setup):
     reference R·ω of the slower axle.
     """
 
+    def kernel_params(self, inputs: StiffnessInputs) -> RlsParams:
+        """The kernel's parameters for a run over ``inputs`` (the lateral process noise per
+        step at the median step length)."""
+        c = self.config
+        ts = float(np.median(inputs.u[:, U_DT]))
+        return RlsParams(p=self.p, r_diag=self.r_diag,
+                         q_lat=(np.asarray(c.model_error[1:], dtype=float) * ts) ** 2,
+                         lo=self.lo, hi=self.hi, forgetting=c.rls_forgetting, cutoff=c.rls_cutoff)
+
     def run(self, inputs: StiffnessInputs, vx: np.ndarray | None = None) -> StiffnessResult:
         """Filter the whole series (deterministic)."""
         c = self.config
@@ -284,20 +313,14 @@ class RlsKalman(_Setup):
         v = inputs.speed if vx is None else np.asarray(vx, dtype=float)
         if v.shape != (k,) or not np.all(np.isfinite(v)):
             raise ValueError(f"vx must be a finite array of shape ({k},)")
-        ts = float(np.median(inputs.u[:, U_DT]))
-        q_lat = (np.asarray(c.model_error[1:], dtype=float) * ts) ** 2
-        theta = np.zeros(N_W)
-        p_rls = np.diag(self.sigma_w**2)
-        z = np.array([0.0, inputs.y[0, YAW_RATE]])
-        p_kf = np.diag([c.initial_state_sd[1] ** 2, c.initial_state_sd[2] ** 2])
-        x_out = np.empty((k, N_STATE))
-        x_sd = np.empty((k, N_STATE))
-        w_out = np.empty((k, N_W))
-        w_sd = np.empty((k, N_W))
-        rls_kf_kernel(inputs.y, inputs.u, v, inputs.active, self.p, self.r_diag, q_lat, self.lo,
-                      self.hi, theta, p_rls, z, p_kf, c.rls_forgetting, c.rls_cutoff, x_out, x_sd,
-                      w_out, w_sd)
-        return self.result(inputs, w_out, w_sd, x_out, x_sd, np.zeros((k, 3)), "rls")
+        st = RlsState(theta=np.zeros(N_W), p_rls=np.diag(self.sigma_w**2),
+                      z=np.array([0.0, inputs.y[0, YAW_RATE]]),
+                      p_kf=np.diag([c.initial_state_sd[1] ** 2, c.initial_state_sd[2] ** 2]))
+        out = RlsEstimates(x=np.empty((k, N_STATE)), x_sd=np.empty((k, N_STATE)),
+                           w=np.empty((k, N_W)), w_sd=np.empty((k, N_W)))
+        rls_kf_kernel(self.kernel_params(inputs), st,
+                      RlsInputs(y=inputs.y, u=inputs.u, vx=v, active=inputs.active), out)
+        return self.result(inputs, out.w, out.w_sd, out.x, out.x_sd, np.zeros((k, 3)), "rls")
 
 
 @register("stiffness", "ekf", "EKF on [v_x, v_y, ψ̇, ΔC, bias]", cite="002 Sec. V",

@@ -101,7 +101,7 @@ steps against a composition of the generic functions):
 from __future__ import annotations
 
 import math
-from typing import Any
+from typing import Any, NamedTuple
 
 import numpy as np
 from numba import njit
@@ -173,6 +173,128 @@ CHOL_FLOOR = 1e-12
 """Relative floor on a Cholesky pivot (round-off on a semi-definite scale matrix)."""
 
 
+class MeasVec(NamedTuple):
+    """A vector in the measurement space [a_x, a_y, ψ̇] (m/s², m/s², rad/s): a bias or a residual."""
+
+    ax: float
+    ay: float
+    yaw_rate: float
+
+
+class MeasCov(NamedTuple):
+    """A covariance in the measurement space, packed like P (``PXX`` …): the accelerometer
+    2 × 2 block (m²/s⁴) and the gyro variance (rad²/s²)."""
+
+    xx: float
+    xy: float
+    yy: float
+    rr: float
+
+
+class AccelCov(NamedTuple):
+    """The accelerometer 2 × 2 block (m²/s⁴) of a measurement covariance."""
+
+    xx: float
+    xy: float
+    yy: float
+
+
+class PFParams(NamedTuple):
+    """What :func:`alg1_kernel` holds fixed over a run (packed by
+    :meth:`~vestim.estimators.stiffness.estimator.NoiseAdaptivePF.params`).
+
+    Attributes:
+        p: model parameters (``model.P_*``).
+        r_pk, q_pk: R and Q of eq. (11)–(12), packed like P (m²/s⁴, rad²/s²; Q per step).
+        bias_inflation: factor (≥ 1) on the residual covariance R + d Σ̂ dᵀ + H P_x Hᵀ of the
+            bias update (30) only (not of the weights): the residuals are correlated over
+            about ``bias_inflation`` steps (see :func:`bias_kalman`); 1 is eq. (30).
+        lo, hi: (3,) bounds of the deviation w (projection, Sec. V; N per unit slip, N/rad, N/rad).
+        forgetting: λ of eq. (20) per ``forgetting_period`` seconds (see the module
+            docstring); a step of length T_s forgets by λ^(T_s/period).
+        forgetting_period: s.
+        n_thr: N_thr of Algorithm 1, line 8 (particles).
+        model_error: (3,) std of the acceleration noise added to the state prediction
+            (m/s², m/s², rad/s²; see the module docstring), zeros for eq. (9) as printed.
+        gyro_lookahead: condition w_k (Theorem 1) and weigh the particles (eq. (36)) on
+            [a_x,k, a_y,k, ψ̇_{k+1}] instead of y_k = [a_x,k, a_y,k, ψ̇_k]: the gyro sample
+            of step k + 1 measures ψ̇_{k+1} = f_ψ̇ + g_ψ̇ w_k (eq. (9)), so its row of d is
+            the yaw row of g and its noise R_ψ̇ + P_ψ̇ + (T_s σ_me,ψ̇)² (module docstring,
+            *Gyro look-ahead*). False is Algorithm 1 as printed.
+    """
+
+    p: np.ndarray
+    r_pk: np.ndarray
+    q_pk: np.ndarray
+    bias_inflation: float
+    lo: np.ndarray
+    hi: np.ndarray
+    forgetting: float
+    forgetting_period: float
+    n_thr: float
+    model_error: np.ndarray
+    gyro_lookahead: bool
+
+
+class PFState(NamedTuple):
+    """What :func:`alg1_kernel` advances in place.
+
+    Attributes:
+        part: (N, ``N_COL``) particles (:func:`pack_particles`) holding x_k, S_{k|k−1},
+            b_{k|k−1}, P_{k|k−1}.
+        logw: (N,) log weights.
+        shared: [γ_{k|k−1}, ν_{k|k−1}] (shared by all particles).
+        rng_state: (4,) uint64 state of the random stream (:mod:`~vestim.estimators.stiffness.draws`,
+            seeded from a ``numpy.random.Generator`` by ``draws.seed_state``).
+    """
+
+    part: np.ndarray
+    logw: np.ndarray
+    shared: np.ndarray
+    rng_state: np.ndarray
+
+
+class SeriesInputs(NamedTuple):
+    """The time series the particle filters read (:func:`alg1_kernel`,
+    :func:`~vestim.estimators.stiffness.augpf.augpf_kernel`), one row per step.
+
+    Attributes:
+        y: (K, 3) measurements [a_x, a_y, ψ̇] (m/s², m/s², rad/s; roll/pitch compensated).
+        u: (K, 4) inputs [δ rad, ω_f rad/s, ω_r rad/s, T_s s].
+        active: (K,) bool, statistics update and forgetting on (Sec. V; Algorithm 1 only).
+        bias_on: (K,) bool; where False the bias filter is frozen (no eq. (29)–(30)).
+    """
+
+    y: np.ndarray
+    u: np.ndarray
+    active: np.ndarray
+    bias_on: np.ndarray
+
+
+class Estimates(NamedTuple):
+    """The particle filters' outputs, one row per step (written by the kernels).
+
+    Attributes:
+        x_hat, x_var: (K, 3) weighted mean and variance of x_k = [v_x, v_y, ψ̇] (eq. (42);
+            m/s, m/s, rad/s and their squares).
+        w_hat: (K, 3) μ̂_k (eq. (27a)). w_cov: (K, 3, 3) Σ̂_k (eq. (27b)).
+        b_hat: (K, 3) weighted mean of b_{k|k} (m/s², m/s², rad/s). ess: (K,) N_eff.
+    """
+
+    x_hat: np.ndarray
+    x_var: np.ndarray
+    w_hat: np.ndarray
+    w_cov: np.ndarray
+    b_hat: np.ndarray
+    ess: np.ndarray
+
+
+def new_estimates(k: int) -> Estimates:
+    """Uninitialised :class:`Estimates` for ``k`` steps."""
+    return Estimates(np.empty((k, 3)), np.empty((k, 3)), np.empty((k, 3)), np.empty((k, 3, 3)),
+                     np.empty((k, 3)), np.empty(k))
+
+
 def pack_particles(x: np.ndarray, mu: np.ndarray, lam: np.ndarray, b: np.ndarray,
                    pb: np.ndarray) -> np.ndarray:
     """Packed particle array (N, ``N_COL``) for :func:`alg1_kernel` from per-quantity arrays.
@@ -218,16 +340,14 @@ def sym3_mv(s00: float, s01: float, s02: float, s11: float, s12: float, s22: flo
 
 
 @njit(**_JIT)
-def bias_kalman(b0: float, b1: float, b2: float, p00: float, p01: float, p11: float, prr: float,
-                e0: float, e1: float, e2: float, s00: float, s01: float, s11: float,
-                r00: float, r01: float, r11: float, rrr: float, u00: float, u01: float,
-                u11: float, urr: float) -> tuple[float, float, float, float, float, float, float]:
+def bias_kalman(b: MeasVec, pb: MeasCov, e: MeasVec, s: AccelCov, r: MeasCov,
+                u: MeasCov) -> tuple[MeasVec, MeasCov]:
     """Kalman update of one particle's bias, 002 eq. (30), on scalars.
 
-    Innovation (e0, e1, e2) = y − h − d μ̂_{k|k} − b_{k|k−1} (m/s², m/s², rad/s);
-    (s00, s01, s11) = d Σ̂_{k|k} dᵀ (accelerometer block); (r..) = R and (u..) = H P_x Hᵀ,
-    packed like P. S = P + R + d Σ̂ dᵀ + H P_x Hᵀ, K = P S⁻¹, b ← b + K e and
-    P ← P − K S Kᵀ = P − P S⁻¹ P.
+    ``b``, ``pb``: the bias b_{k|k−1} and its covariance P_{k|k−1}. Innovation ``e`` =
+    y − h − d μ̂_{k|k} − b_{k|k−1}; ``s`` = d Σ̂_{k|k} dᵀ (accelerometer block; a gyro entry
+    goes into ``u.rr``); ``r`` = R and ``u`` = H P_x Hᵀ. S = P + R + d Σ̂ dᵀ + H P_x Hᵀ,
+    K = P S⁻¹, b ← b + K e and P ← P − K S Kᵀ = P − P S⁻¹ P.
 
     Two deviations from the printed eq. (30): 002 prints P − K S⁻¹ Kᵀ, which is not
     the Kalman covariance update (we use the standard form); and eq. (30) treats the
@@ -240,13 +360,14 @@ def bias_kalman(b0: float, b1: float, b2: float, p00: float, p01: float, p11: fl
     vanishes once the cloud has converged.
 
     Returns:
-        (b0, b1, b2, P_xx, P_xy, P_yy, P_ψψ) of b_{k|k}, P_{k|k}.
+        (b_{k|k}, P_{k|k}).
     """
-    a00 = p00 + r00 + s00 + u00
-    a01 = p01 + r01 + s01 + u01
-    a11 = p11 + r11 + s11 + u11
+    p00, p01, p11, prr = pb.xx, pb.xy, pb.yy, pb.rr
+    a00 = p00 + r.xx + s.xx + u.xx
+    a01 = p01 + r.xy + s.xy + u.xy
+    a11 = p11 + r.yy + s.yy + u.yy
     det = a00 * a11 - a01 * a01
-    srr = prr + rrr + urr
+    srr = prr + r.rr + u.rr
     inv_all = 1.0 / (det * srr)     # one division for the 2 × 2 block and the gyro
     inv_det = srr * inv_all
     i00 = a11 * inv_det
@@ -259,20 +380,22 @@ def bias_kalman(b0: float, b1: float, b2: float, p00: float, p01: float, p11: fl
     k11 = p01 * i01 + p11 * i11
     krr = prr * det * inv_all
     # P − K P (= P − P S⁻¹ P, symmetric)
-    return (b0 + k00 * e0 + k01 * e1, b1 + k10 * e0 + k11 * e1, b2 + krr * e2,
-            p00 - (k00 * p00 + k01 * p01), p01 - (k00 * p01 + k01 * p11),
-            p11 - (k10 * p01 + k11 * p11), prr - krr * prr)
+    return (MeasVec(b.ax + k00 * e.ax + k01 * e.ay, b.ay + k10 * e.ax + k11 * e.ay,
+                    b.yaw_rate + krr * e.yaw_rate),
+            MeasCov(p00 - (k00 * p00 + k01 * p01), p01 - (k00 * p01 + k01 * p11),
+                    p11 - (k10 * p01 + k11 * p11), prr - krr * prr))
 
 
 @njit(**_JIT)
 def bias_update(b: np.ndarray, pb: np.ndarray, e0: float, e1: float, e2: float,
                 s00: float, s01: float, s11: float, r: np.ndarray, x_unc: np.ndarray) -> None:
     """:func:`bias_kalman` in place on ``b`` (3,) and ``pb`` (4,); ``r``, ``x_unc`` packed like ``pb``."""
-    out = bias_kalman(b[M_AX], b[M_AY], b[M_YAW_RATE], pb[PXX], pb[PXY], pb[PYY], pb[PRR],
-                      e0, e1, e2, s00, s01, s11, r[PXX], r[PXY], r[PYY], r[PRR],
-                      x_unc[PXX], x_unc[PXY], x_unc[PYY], x_unc[PRR])
-    b[M_AX], b[M_AY], b[M_YAW_RATE] = out[0], out[1], out[2]
-    pb[PXX], pb[PXY], pb[PYY], pb[PRR] = out[3], out[4], out[5], out[6]
+    nb, npb = bias_kalman(MeasVec(b[M_AX], b[M_AY], b[M_YAW_RATE]),
+                          MeasCov(pb[PXX], pb[PXY], pb[PYY], pb[PRR]), MeasVec(e0, e1, e2),
+                          AccelCov(s00, s01, s11), MeasCov(r[PXX], r[PXY], r[PYY], r[PRR]),
+                          MeasCov(x_unc[PXX], x_unc[PXY], x_unc[PYY], x_unc[PRR]))
+    b[M_AX], b[M_AY], b[M_YAW_RATE] = nb.ax, nb.ay, nb.yaw_rate
+    pb[PXX], pb[PXY], pb[PYY], pb[PRR] = npb.xx, npb.xy, npb.yy, npb.rr
 
 
 @njit(**_JIT)
@@ -366,49 +489,28 @@ def state_uncertainty(q: np.ndarray, x: np.ndarray, x_mean: np.ndarray, delta: f
 
 
 @njit(**_FAST)
-def alg1_kernel(y: np.ndarray, u: np.ndarray, active: np.ndarray, bias_on: np.ndarray,
-                p: np.ndarray,
-                r_pk: np.ndarray, q_pk: np.ndarray, bias_inflation: float, lo: np.ndarray,
-                hi: np.ndarray, forgetting: float, forgetting_period: float, n_thr: float,
-                model_error: np.ndarray, part: np.ndarray, logw: np.ndarray, shared: np.ndarray,
-                rng_state: np.ndarray,
-                x_hat: np.ndarray, x_var: np.ndarray, w_hat: np.ndarray, w_cov: np.ndarray,
-                b_hat: np.ndarray, ess: np.ndarray, gyro_lookahead: bool = False) -> int:
-    """Run Algorithm 1 of 002 over K steps; the particle array is updated in place.
+def alg1_kernel(prm: PFParams, st: PFState, inp: SeriesInputs, out: Estimates) -> int:
+    """Run Algorithm 1 of 002 over the K steps of ``inp``; ``st`` is advanced in place.
 
     Args:
-        y: (K, 3) measurements [a_x, a_y, ψ̇] (m/s², m/s², rad/s; roll/pitch compensated).
-        u: (K, 4) inputs [δ rad, ω_f rad/s, ω_r rad/s, T_s s]. active: (K,) bool (Sec. V).
-        bias_on: (K,) bool; where False the bias filter is frozen (no eq. (29)–(30)).
-        p: model parameters (``model.P_*``).
-        r_pk, q_pk: R and Q of eq. (11)–(12), packed like P (m²/s⁴, rad²/s²; Q per step).
-        bias_inflation: factor (≥ 1) on the residual covariance R + d Σ̂ dᵀ + H P_x Hᵀ of the
-            bias update (30) only (not of the weights): the residuals are correlated over
-            about ``bias_inflation`` steps (see :func:`bias_kalman`); 1 is eq. (30).
-        lo, hi: (3,) bounds of the deviation w (projection, Sec. V).
-        forgetting: λ of eq. (20) per ``forgetting_period`` seconds (see the module
-            docstring); a step of length T_s forgets by λ^(T_s/period).
-        n_thr: N_thr of Algorithm 1, line 8 (particles).
-        model_error: (3,) std of the acceleration noise added to the state prediction
-            (m/s², m/s², rad/s²; see the module docstring), zeros for eq. (9) as printed.
-        part: (N, ``N_COL``) particles (:func:`pack_particles`) holding x_k, S_{k|k−1},
-            b_{k|k−1}, P_{k|k−1}; on return x_K, S_{K|K−1}, b_{K|K−1}, P_{K|K−1}.
-        logw: (N,) log weights. shared: [γ_{k|k−1}, ν_{k|k−1}], updated in place.
-        rng_state: (4,) uint64 state of the random stream (:mod:`~vestim.estimators.stiffness.draws`,
-            seeded from a ``numpy.random.Generator`` by ``draws.seed_state``), advanced in
-            place: every normal and the resampling uniform.
-        x_hat, x_var: (K, 3) ← weighted mean and variance of x_k (eq. (42)).
-        w_hat: (K, 3) ← μ̂_k (eq. (27a)). w_cov: (K, 3, 3) ← Σ̂_k (eq. (27b)).
-        b_hat: (K, 3) ← weighted mean of b_{k|k}. ess: (K,) ← N_eff of line 7.
-        gyro_lookahead: condition w_k (Theorem 1) and weigh the particles (eq. (36)) on
-            [a_x,k, a_y,k, ψ̇_{k+1}] instead of y_k = [a_x,k, a_y,k, ψ̇_k]: the gyro sample
-            of step k + 1 measures ψ̇_{k+1} = f_ψ̇ + g_ψ̇ w_k (eq. (9)), so its row of d is
-            the yaw row of g and its noise R_ψ̇ + P_ψ̇ + (T_s σ_me,ψ̇)² (module docstring,
-            *Gyro look-ahead*). False is Algorithm 1 as printed.
+        prm: the run's parameters (:class:`PFParams`).
+        st: particles, log weights, [γ, ν] and the random stream (:class:`PFState`): on entry
+            x_k, S_{k|k−1}, b_{k|k−1}, P_{k|k−1} of the first step, on return those of step K;
+            the stream advanced by every normal and the resampling uniforms.
+        inp: y, u, active, bias_on over the K steps (:class:`SeriesInputs`).
+        out: ← the estimates of each step (:class:`Estimates`; ``ess`` is N_eff of line 7).
 
     Returns:
         The number of resampling events.
     """
+    y, u, active, bias_on = inp.y, inp.u, inp.active, inp.bias_on
+    p, r_pk, q_pk, lo, hi = prm.p, prm.r_pk, prm.q_pk, prm.lo, prm.hi
+    bias_inflation = prm.bias_inflation
+    forgetting, forgetting_period = prm.forgetting, prm.forgetting_period
+    n_thr = prm.n_thr
+    model_error = prm.model_error
+    part, logw, shared, rng_state = st.part, st.logw, st.shared, st.rng_state
+    x_hat, x_var, w_hat, w_cov, b_hat, ess = out.x_hat, out.x_var, out.w_hat, out.w_cov, out.b_hat, out.ess
     n_part = part.shape[0]
     n_steps = y.shape[0]
     if n_steps == 0:
@@ -427,16 +529,13 @@ def alg1_kernel(y: np.ndarray, u: np.ndarray, active: np.ndarray, bias_on: np.nd
     me_vx = model_error[VX]
     me_vy = model_error[VY]
     me_r = model_error[YAW_RATE]
-    look = gyro_lookahead
+    look = prm.gyro_lookahead
     r00 = r_pk[PXX]
     r01 = r_pk[PXY]
     r11 = r_pk[PYY]
     rrr = r_pk[PRR]
     bi = max(bias_inflation, 1.0)
-    br00 = bi * r00
-    br01 = bi * r01
-    br11 = bi * r11
-    brrr = bi * rrr
+    br = MeasCov(bi * r00, bi * r01, bi * r11, bi * rrr)
     lo0, lo1, lo2 = lo[W_CX], lo[W_CYF], lo[W_CYR]
     hi0, hi1, hi2 = hi[W_CX], hi[W_CYF], hi[W_CYR]
     # q holds the normalised weights after the previous step's resampling (for b_hat)
@@ -507,20 +606,21 @@ def alg1_kernel(y: np.ndarray, u: np.ndarray, active: np.ndarray, bias_on: np.nd
                 # only where non-zero (v_y, ψ̇ from nrm[i, D_ME:D_ME + 2], v_x from nrm[i, c_vx]).
                 # Written out here: a helper taking the arrays costs reference counting per call.
                 if finish_bias:
-                    nb = bias_kalman(part[i, C_B], part[i, C_B + 1], part[i, C_B + 2],
-                                     part[i, C_PB + PXX], part[i, C_PB + PXY], part[i, C_PB + PYY],
-                                     part[i, C_PB + PRR],
-                                     part[i, C_EB], part[i, C_EB + 1], part[i, C_EB + 2],
-                                     bi * part[i, C_SB + PXX], bi * part[i, C_SB + PXY],
-                                     bi * part[i, C_SB + PYY], br00, br01, br11, brrr,
-                                     bu00, bu01, bu11, burr + bi * part[i, C_SB + PRR])
-                    part[i, C_B] = nb[0]
-                    part[i, C_B + 1] = nb[1]
-                    part[i, C_B + 2] = nb[2]
-                    part[i, C_PB + PXX] = nb[3] + q_pk[PXX]
-                    part[i, C_PB + PXY] = nb[4] + q_pk[PXY]
-                    part[i, C_PB + PYY] = nb[5] + q_pk[PYY]
-                    part[i, C_PB + PRR] = nb[6] + q_pk[PRR]
+                    nb, npb = bias_kalman(
+                        MeasVec(part[i, C_B], part[i, C_B + 1], part[i, C_B + 2]),
+                        MeasCov(part[i, C_PB + PXX], part[i, C_PB + PXY], part[i, C_PB + PYY],
+                                part[i, C_PB + PRR]),
+                        MeasVec(part[i, C_EB], part[i, C_EB + 1], part[i, C_EB + 2]),
+                        AccelCov(bi * part[i, C_SB + PXX], bi * part[i, C_SB + PXY],
+                                 bi * part[i, C_SB + PYY]), br,
+                        MeasCov(bu00, bu01, bu11, burr + bi * part[i, C_SB + PRR]))
+                    part[i, C_B] = nb.ax
+                    part[i, C_B + 1] = nb.ay
+                    part[i, C_B + 2] = nb.yaw_rate
+                    part[i, C_PB + PXX] = npb.xx + q_pk[PXX]
+                    part[i, C_PB + PXY] = npb.xy + q_pk[PXY]
+                    part[i, C_PB + PYY] = npb.yy + q_pk[PYY]
+                    part[i, C_PB + PRR] = npb.rr + q_pk[PRR]
                 xn0 = part[i, C_XN + VX]
                 xn1 = part[i, C_XN + VY]
                 xn2 = part[i, C_XN + YAW_RATE]
