@@ -16,7 +16,9 @@ from vestim.filters.kalman import (
     kalman_update_scalar,
     kalman_update_scalar3,
     ukf_update,
+    ukf_update3_select02,
     ukf_update4,
+    ukf_update_scalar2,
 )
 from vestim.filters.ukf import sigma_points, ukf_weights, weighted_cross, weighted_mean
 
@@ -231,3 +233,109 @@ def test_kalman_update_scalar3_equals_the_general_one_bit_for_bit(seed, zeros):
     Pb = np.array([[out[3], out[4], out[5]], [out[4], out[6], out[7]], [out[5], out[7], out[8]]])
     assert np.array_equal(xa, xb) and np.array_equal(Pa, Pb)
     assert np.array_equal(np.signbit(Pa), np.signbit(Pb))
+
+
+def _close_to_the_general_update(xa, Pa, xb, Pb) -> None:
+    """1e-12 of each result's scale: a few ulps of the 2–3 term sums and of the 1–2
+    divisions, which the written-out forms round differently from the Cholesky solve."""
+    np.testing.assert_allclose(xb, xa, rtol=1e-12, atol=1e-12 * np.abs(xa).max())
+    np.testing.assert_allclose(Pb, Pa, rtol=1e-12, atol=1e-12 * np.abs(Pa).max())
+
+
+def _ukf_rw_update_as_written(x0, x1, p00, p01, p11, pxz0, pxz1, pzz, innov):
+    """The papers' force UKF's update as the ukf_rw kernel wrote it out before issue 27
+    moved it into filters/ (the reference for the floats the pipeline gave)."""
+    k0 = pxz0 / pzz
+    k1 = pxz1 / pzz
+    return (x0 + k0 * innov, x1 + k1 * innov, p00 - k0 * k0 * pzz, p01 - k0 * k1 * pzz,
+            p11 - k1 * k1 * pzz)
+
+
+@settings(max_examples=100, deadline=None)
+@given(st.integers(0, 2**32 - 1))
+def test_ukf_update_scalar2_is_the_general_update_and_the_ukf_rw_kernels(seed):
+    """ukf_rw's scalar update: to 1e-12 the general ukf_update (n = 2, m = 1) on a
+    consistent joint covariance (P_xy = P h, P_yy = hᵀ P h + r, r between a tenth and ten
+    times hᵀ P h, so P keeps ≥ 1/11 of its variance along h: no cancellation beyond a
+    decade), and bit for bit the kernel's former written-out update, so ``ukf_rw``'s
+    outputs do not move (issue 27)."""
+    rng = np.random.default_rng(seed)
+    d = np.diag([1.0, 1e3])  # ukf_rw's scales: ω in rad/s, F in N
+    P = d @ _spd(rng, 2) @ d
+    P = 0.5 * (P + P.T)
+    h = rng.standard_normal(2)
+    Pxy = P @ h
+    Pyy = h @ Pxy * (1.0 + 10.0 ** rng.uniform(-1, 1))
+    x = rng.standard_normal(2) * np.array([100.0, 1e3])
+    nu = float(rng.standard_normal()) * np.sqrt(Pyy)
+    out = ukf_update_scalar2(x[0], x[1], P[0, 0], P[0, 1], P[1, 1], Pxy[0], Pxy[1], Pyy, nu)
+    xb = np.array(out[:2])
+    Pb = np.array([[out[2], out[3]], [out[3], out[4]]])
+    xa, Pa = x.copy(), P.copy()
+    assert ukf_update(xa, Pa, Pxy[:, None].copy(), np.array([[Pyy]]), np.array([nu]),
+                      np.empty((1, 1)), np.empty((2, 1)))
+    _close_to_the_general_update(xa, Pa, xb, Pb)
+    ref = _ukf_rw_update_as_written(x[0], x[1], P[0, 0], P[0, 1], P[1, 1], Pxy[0], Pxy[1],
+                                    Pyy, nu)
+    assert out == ref
+
+
+def _ukf_update_as_written(xm, Pm, r_w, r_t, e0, e1):
+    """The default longitudinal force UKF's update of x = [ω, ω̇, T] by z = [ω, T] as
+    ukf_kernel wrote it out before issue 27 moved it into filters/ (the reference for the
+    floats the pipeline gave)."""
+    x = np.empty(3)
+    P = np.empty((3, 3))
+    s00 = Pm[0, 0] + r_w
+    s01 = Pm[0, 2]
+    s11 = Pm[2, 2] + r_t
+    det = s00 * s11 - s01 * s01
+    i00 = s11 / det
+    i01 = -s01 / det
+    i11 = s00 / det
+    for r in range(3):
+        g0 = Pm[r, 0] * i00 + Pm[r, 2] * i01
+        g1 = Pm[r, 0] * i01 + Pm[r, 2] * i11
+        x[r] = xm[r] + g0 * e0 + g1 * e1
+        for q in range(3):
+            P[r, q] = Pm[r, q] - (g0 * Pm[q, 0] + g1 * Pm[q, 2])
+    for r in range(3):
+        for q in range(r + 1, 3):
+            v = 0.5 * (P[r, q] + P[q, r])
+            P[r, q] = v
+            P[q, r] = v
+    return x, P
+
+
+@settings(max_examples=100, deadline=None)
+@given(st.integers(0, 2**32 - 1))
+def test_ukf_update3_select02_is_the_general_update_and_the_ukf_kernels(seed):
+    """The default longitudinal UKF's update by z = (x_0, x_2): to 1e-12 the general
+    ukf_update (P_xy = P̄[:, {0, 2}], P_yy = P̄[{0, 2}, {0, 2}] + R, R's variances between a
+    tenth and ten times P̄'s, so no entry cancels beyond a decade or two), and bit for bit
+    the kernel's former written-out update, P̄ also asymmetric in its last bits as the
+    sigma-point sums leave it, so ``ukf``'s outputs do not move (issue 27)."""
+    rng = np.random.default_rng(seed)
+    d = np.diag([1.0, 10.0, 100.0])  # ukf's scales: ω rad/s, ω̇ rad/s², T N m
+    P = d @ _spd(rng, 3) @ d
+    P = 0.5 * (P + P.T)
+    r0, r2 = P[0, 0] * 10.0 ** rng.uniform(-1, 1), P[2, 2] * 10.0 ** rng.uniform(-1, 1)
+    x = rng.standard_normal(3) * np.array([100.0, 10.0, 500.0])
+    nu = rng.standard_normal(2) * np.sqrt([P[0, 0] + r0, P[2, 2] + r2])
+    sel = [0, 2]
+    xa, Pa = x.copy(), P.copy()
+    assert ukf_update(xa, Pa, P[:, sel].copy(), P[np.ix_(sel, sel)] + np.diag([r0, r2]), nu,
+                      np.empty((2, 2)), np.empty((3, 2)))
+
+    def written_out(P):
+        out = ukf_update3_select02(x[0], x[1], x[2], *P.ravel(), r0, r2, nu[0], nu[1])
+        return np.array(out[:3]), np.array([[out[3], out[4], out[5]], [out[4], out[6], out[7]],
+                                            [out[5], out[7], out[8]]])
+
+    xb, Pb = written_out(P)
+    _close_to_the_general_update(xa, Pa, xb, Pb)
+    P_lower = P * (1.0 + np.tril(rng.choice([-1.0, 0.0, 1.0], (3, 3)), -1) * 2.0**-52)
+    for Pm in (P, P_lower):  # symmetric, and off by an ulp below the diagonal
+        xb, Pb = written_out(Pm)
+        xr, Pr = _ukf_update_as_written(x, Pm, r0, r2, nu[0], nu[1])
+        assert np.array_equal(xb, xr) and np.array_equal(Pb, Pr)

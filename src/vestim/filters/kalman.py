@@ -22,23 +22,25 @@ arrays are passed in, as in :mod:`vestim.filters.linalg`):
   UKF corner filters, the stiffness EKF and the RLS + KF's Kalman filter use it,
   the UKF included: its measurement is linear in the state, so the sigma-point
   sums P_xy, P_yy equal P̄ Hᵀ and H P̄ Hᵀ + R exactly and the update is a
-  linear one. Not yet the force stage's UKFs (longitudinal and lateral, which
-  keep their own updates): when step() had its own compiled composition, these
-  kernels optimised differently once inlined there made it differ from the batch
-  run by 1e-16 relative. Both now go through :mod:`vestim.pipeline.rows`, so
-  that obstacle is gone; the move itself is still to do. The scalar kernel
-  is the vector one for m = 1 without the Cholesky factorisation (S is a number).
+  linear one. The scalar kernel is the vector one for m = 1 without the Cholesky
+  factorisation (S is a number); :func:`kalman_update_scalar3` is it for n = 3 on
+  scalars, bit for bit.
 
 * :func:`ukf_update` — the unscented update from sigma-point statistics (000
   eq. (11)–(12), 004 eq. (5)): K = P_xy P_yy⁻¹ by a Cholesky solve
   (:func:`~vestim.filters.linalg.chol_solve`), x̂ ← x̂ + K ν, P ← P − K P_xyᵀ
   (= P − K P_yy Kᵀ), symmetrised. Without H the Joseph form cannot be written;
-  it is for filters that evaluate the measurement at the sigma points (the
-  papers' form ``ukf_rw`` of :mod:`vestim.estimators.force.longitudinal`, once
-  the force UKFs move here). :func:`ukf_update4` is the same update for 4 states and
-  4 measurements (the lateral force UKF) in constant-size loops, bit for bit equal;
-  a general update over run-time sizes made the force stage's kernels about twice as
-  slow (issue 27).
+  it is for filters that evaluate the measurement at the sigma points. The force
+  stage's UKFs use fixed-size forms of it (a general update over run-time sizes made
+  their kernels about twice as slow, issue 27): :func:`ukf_update4` (4 states, 4
+  measurements: the lateral force UKF) in constant-size loops, bit for bit equal to
+  :func:`ukf_update`; on scalars, :func:`ukf_update_scalar2` (2 states, one measurement:
+  the papers' ``ukf_rw`` of :mod:`vestim.estimators.force.longitudinal`, P − k s kᵀ) and
+  :func:`ukf_update3_select02` (3 states measured at components 0 and 2: the default
+  longitudinal ``ukf``, P_yy⁻¹ in closed form; its measurement is linear, but it keeps
+  P − K P_xyᵀ rather than the Joseph form, whose floats differ), which equal
+  :func:`ukf_update` to round-off and keep the floats those kernels computed when they
+  wrote the update out.
 
 Matrices are a few rows at most; plain loops beat LAPACK calls here by an order
 of magnitude. Nothing here knows about vehicles.
@@ -300,3 +302,76 @@ def ukf_update4(x: np.ndarray, P: np.ndarray, Pxy: np.ndarray, Pyy: np.ndarray, 
             P[i, j] = v
             P[j, i] = v
     return ok
+
+
+@njit(**_JIT)
+def ukf_update_scalar2(x0: float, x1: float, p00: float, p01: float, p11: float, c0: float,
+                       c1: float, s: float, nu: float
+                       ) -> tuple[float, float, float, float, float]:
+    """:func:`ukf_update` for 2 states and one measurement, on scalars (no arrays: a kernel's
+    per-sample views of its state cost reference counting).
+
+    P = [[p00, p01], [p01, p11]], x = (x0, x1), P_xy = (c0, c1), P_yy = s (R included),
+    ν = z − ŷ, in the units of the caller's state and measurement. k = P_xy / s, x̂ ← x̂ + k ν,
+    P ← P − k s kᵀ, which is P − k P_xyᵀ (:func:`ukf_update`'s form) in exact arithmetic and
+    symmetric by construction; the division is by s itself, not by its Cholesky factor twice,
+    so the floats differ from :func:`ukf_update`'s by round-off. These are the operations of
+    the papers' ``ukf_rw`` force UKF (:mod:`vestim.estimators.force.longitudinal`) in their
+    order, so its outputs are those of its hand-written update, bit for bit. Returns the
+    updated (x0, x1, p00, p01, p11).
+    """
+    k0 = c0 / s
+    k1 = c1 / s
+    return (x0 + k0 * nu, x1 + k1 * nu, p00 - k0 * k0 * s, p01 - k0 * k1 * s,
+            p11 - k1 * k1 * s)
+
+
+@njit(**_JIT)
+def ukf_update3_select02(x0: float, x1: float, x2: float, p00: float, p01: float, p02: float,
+                         p10: float, p11: float, p12: float, p20: float, p21: float,
+                         p22: float, r0: float, r2: float, nu0: float, nu2: float
+                         ) -> tuple[float, float, float, float, float, float, float, float,
+                                    float]:
+    """:func:`ukf_update` for 3 states measured by z = (x_0, x_2) + v, var(v) = diag(r0, r2),
+    on scalars: P_xy = P̄[:, {0, 2}], P_yy = P̄[{0, 2}, {0, 2}] + R (the sigma-point sums of
+    a measurement that selects state components equal these blocks), P_yy⁻¹ in closed form
+    (2 × 2: det, then the adjugate's entries each divided by it), K = P_xy P_yy⁻¹,
+    x̂ ← x̂ + K ν, P ← P̄ − K P_xyᵀ, symmetrised (the upper and lower entry averaged).
+
+    P̄ is passed whole, (p00 … p22) row by row: a sigma-point covariance is symmetric only to
+    round-off (w a b and w b a differ in the last bit), and each entry is used where the
+    hand-written update of the longitudinal force UKF (:func:`~vestim.estimators.force.
+    longitudinal.ukf_kernel`) used it, in its order, so its outputs are unchanged bit for bit.
+    ν = (z_0 − x̂_0, z_2 − x̂_2). Units are the caller's. The closed-form inverse and the
+    grouping K P_xyᵀ differ from :func:`ukf_update`'s Cholesky solve and running sums by
+    round-off. Returns the updated (x0, x1, x2, p00, p01, p02, p11, p12, p22).
+    """
+    s00 = p00 + r0
+    s01 = p02
+    s11 = p22 + r2
+    det = s00 * s11 - s01 * s01
+    i00 = s11 / det
+    i01 = -s01 / det
+    i11 = s00 / det
+    # gain rows (g_r0, g_r2) = P̄[r, {0, 2}] P_yy⁻¹
+    g00 = p00 * i00 + p02 * i01
+    g02 = p00 * i01 + p02 * i11
+    g10 = p10 * i00 + p12 * i01
+    g12 = p10 * i01 + p12 * i11
+    g20 = p20 * i00 + p22 * i01
+    g22 = p20 * i01 + p22 * i11
+    x0 = x0 + g00 * nu0 + g02 * nu2
+    x1 = x1 + g10 * nu0 + g12 * nu2
+    x2 = x2 + g20 * nu0 + g22 * nu2
+    # P̄ − K P_xyᵀ entry by entry, then (upper + lower)/2
+    n00 = p00 - (g00 * p00 + g02 * p02)
+    n01 = p01 - (g00 * p10 + g02 * p12)
+    n02 = p02 - (g00 * p20 + g02 * p22)
+    n10 = p10 - (g10 * p00 + g12 * p02)
+    n11 = p11 - (g10 * p10 + g12 * p12)
+    n12 = p12 - (g10 * p20 + g12 * p22)
+    n20 = p20 - (g20 * p00 + g22 * p02)
+    n21 = p21 - (g20 * p10 + g22 * p12)
+    n22 = p22 - (g20 * p20 + g22 * p22)
+    return (x0, x1, x2, n00, 0.5 * (n01 + n10), 0.5 * (n02 + n20), n11, 0.5 * (n12 + n21),
+            n22)

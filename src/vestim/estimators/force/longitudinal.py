@@ -32,6 +32,7 @@ import numpy as np
 from numba import njit
 
 from vestim.estimators.registry import register, registered
+from vestim.filters.kalman import ukf_update3_select02, ukf_update_scalar2
 from vestim.filters.ukf import sigma_points2, sigma_points3, ukf_weights
 from vestim.io.vehicle import Vehicle
 from vestim.params import check_ranges, pack
@@ -197,17 +198,17 @@ def ukf_rw_kernel(p: LongitudinalParams, s: LongitudinalState, t: np.ndarray, om
                 pzz += wc[i] * dz * dz
                 pxz0 += wc[i] * (pts[i, W] - xm[0]) * dz
                 pxz1 += wc[i] * (pts[i, F] - xm[1]) * dz
-            k0 = pxz0 / pzz
-            k1 = pxz1 / pzz
-            innov = omega[k, c] - zhat
-            x[c, W] = xm[0] + k0 * innov
-            x[c, F] = xm[1] + k1 * innov
-            P[c, 0, 0] = Pm[0, 0] - k0 * k0 * pzz
-            P[c, 0, 1] = Pm[0, 1] - k0 * k1 * pzz
-            P[c, 1, 0] = P[c, 0, 1]
-            P[c, 1, 1] = Pm[1, 1] - k1 * k1 * pzz
-            fx[k, c] = x[c, F]
-            sigma[k, c] = np.sqrt(max(P[c, 1, 1], 0.0))
+            w_c, f_c, p00, p01, p11 = ukf_update_scalar2(
+                xm[0], xm[1], Pm[0, 0], Pm[0, 1], Pm[1, 1], pxz0, pxz1, pzz,
+                omega[k, c] - zhat)
+            x[c, W] = w_c
+            x[c, F] = f_c
+            P[c, 0, 0] = p00
+            P[c, 0, 1] = p01
+            P[c, 1, 0] = p01
+            P[c, 1, 1] = p11
+            fx[k, c] = f_c
+            sigma[k, c] = np.sqrt(max(p11, 0.0))
             high[k, c] = is_high
             prev_torque[c] = torque[k, c]
         _push(hist_t, hist_w, t, omega, k)
@@ -487,30 +488,26 @@ def ukf_kernel(t: np.ndarray, omega: np.ndarray, torque: np.ndarray, prm: UKFKer
             # Update with z = [ω, T]. The measurement selects state components, so the
             # sigma-point sums of 000 eq. (11) equal the blocks of P̄ exactly
             # (Σ W^c (χ − x̄)(χ − x̄)ᵀ = P̄ for these weights): ẑ = [ω̄, T̄],
-            # P_zz = P̄[{ω, T}, {ω, T}] + R, P_xz = P̄[:, {ω, T}], inverted in closed form.
-            s00 = Pm[A_W, A_W] + r_w
-            s01 = Pm[A_W, A_T]
-            s11 = Pm[A_T, A_T] + r_t
-            det = s00 * s11 - s01 * s01
-            i00 = s11 / det
-            i01 = -s01 / det
-            i11 = s00 / det
-            e0 = omega[k, c] - xm[A_W]
-            e1 = torque[k, c] - xm[A_T]
-            for r in range(3):
-                g0 = Pm[r, A_W] * i00 + Pm[r, A_T] * i01
-                g1 = Pm[r, A_W] * i01 + Pm[r, A_T] * i11
-                x[c, r] = xm[r] + g0 * e0 + g1 * e1
-                for q in range(3):
-                    # P = P̄ − K P_zz Kᵀ = P̄ − K P_xzᵀ
-                    P[c, r, q] = Pm[r, q] - (g0 * Pm[q, A_W] + g1 * Pm[q, A_T])
-            for r in range(3):
-                for q in range(r + 1, 3):
-                    v = 0.5 * (P[c, r, q] + P[c, q, r])
-                    P[c, r, q] = v
-                    P[c, q, r] = v
-            fx[k, c] = (x[c, A_T] - iw * x[c, A_A]) / radius
-            var = (P[c, A_T, A_T] - 2.0 * iw * P[c, A_T, A_A] + iw * iw * P[c, A_A, A_A])
+            # P_zz = P̄[{ω, T}, {ω, T}] + R, P_xz = P̄[:, {ω, T}], inverted in closed form;
+            # P = P̄ − K P_xzᵀ (= P̄ − K P_zz Kᵀ), symmetrised.
+            w_c, a_c, t_c, p00, p01, p02, p11, p12, p22 = ukf_update3_select02(
+                xm[A_W], xm[A_A], xm[A_T], Pm[0, 0], Pm[0, 1], Pm[0, 2], Pm[1, 0], Pm[1, 1],
+                Pm[1, 2], Pm[2, 0], Pm[2, 1], Pm[2, 2], r_w, r_t, omega[k, c] - xm[A_W],
+                torque[k, c] - xm[A_T])
+            x[c, A_W] = w_c
+            x[c, A_A] = a_c
+            x[c, A_T] = t_c
+            P[c, 0, 0] = p00
+            P[c, 0, 1] = p01
+            P[c, 0, 2] = p02
+            P[c, 1, 0] = p01
+            P[c, 1, 1] = p11
+            P[c, 1, 2] = p12
+            P[c, 2, 0] = p02
+            P[c, 2, 1] = p12
+            P[c, 2, 2] = p22
+            fx[k, c] = (t_c - iw * a_c) / radius
+            var = (p22 - 2.0 * iw * p12 + iw * iw * p11)
             sigma[k, c] = np.sqrt(max(var, 0.0)) / radius
             high[k, c] = is_high or now_innov or now_torque
         _push(hist_t, hist_w, t, omega, k)
