@@ -283,10 +283,16 @@ class VelocityParams(NamedTuple):
     gamma: float
 
 
+PREV_T, PREV_R, PREV_FUSED_SAME, N_PREV = range(4)
+"""Entries of :attr:`VelocityState.prev`: the previous sample's time (s) and yaw rate (rad/s),
+whose ṙ the corner observers take (:func:`~vestim.models.kinematics.yaw_acceleration_kernel`
+reads ``prev[:2]`` in this order), and whether the fused filter is still the plain one (1/0)."""
+
+
 class VelocityState(NamedTuple):
-    """The velocity stage's states: ``prev`` = [t, yaw rate] of the previous sample (ṙ) and
-    whether the fused filter is still the plain one (1/0); ``t_gnss`` (1,) the previous
-    sample's time (a fix's weight), s."""
+    """The velocity stage's states: ``prev`` (:data:`N_PREV`,) = the previous sample's t and
+    yaw rate (ṙ) and whether the fused filter is still the plain one (1/0), at the
+    ``PREV_*`` indices; ``t_gnss`` (1,) the previous sample's time (a fix's weight), s."""
 
     stiffness: StiffnessState
     radius: RadiusState
@@ -610,7 +616,7 @@ def _block(P: Params, S: State, x: np.ndarray, Y: np.ndarray, k0: int) -> None:
         bias[:] = np.nan
     else:
         prev = vs.prev
-        same = method == FUSED and prev[2] == 1.0
+        same = method == FUSED and prev[PREV_FUSED_SAME] == 1.0
         if same:
             # While it is the plain filter the fused filter's state is not used: it holds the
             # plain filter's state before this block, the start of its first own step.
@@ -728,7 +734,7 @@ def _corners_vx(vp: VelocityParams, fp: ForceParams, cs: CornerState, prev: np.n
     radius = fp.radius
     m = t.shape[0]
     yaw_acc = sc.one[A_YAW_ACC, :m]
-    yaw_acceleration_kernel(t, r, prev, yaw_acc)  # prev[:2]: the previous (t, r)
+    yaw_acceleration_kernel(t, r, prev, yaw_acc)  # prev[PREV_T], prev[PREV_R]: (t, r)
     axc = sc.one[A_AXC, :m]
     ayc = sc.one[A_AYC, :m]
     for i in range(m):
@@ -839,7 +845,8 @@ def _fused(rp: ReferenceKernelParams, fused: ReferenceState, prev: np.ndarray, s
     (``n_high``). Returns its (v, σ, bias), the reference filter's while the fused one has
     not yet diverged from it (the reference filter's are the views B_V_REF, B_SIG_REF,
     C_BIAS_REF of ``sc``). ``rp`` the reference filter's parameters, ``fused`` the fused
-    filter's state, ``prev`` = VelocityState.prev (its [2] set to 0 once they differ)."""
+    filter's state, ``prev`` = VelocityState.prev (its [PREV_FUSED_SAME] set to 0 once
+    they differ)."""
     m = t.shape[0]
     any_slip = False
     for i in range(m):
@@ -849,7 +856,7 @@ def _fused(rp: ReferenceKernelParams, fused: ReferenceState, prev: np.ndarray, s
         extra_var[i, 1] = rp.sigma_corner_slip ** 2 if slipping else np.nan
     if same and not any_slip:
         return sc.two[B_V_REF, :m], sc.two[B_SIG_REF, :m], sc.four[C_BIAS_REF, :m]
-    prev[2] = 0.0
+    prev[PREV_FUSED_SAME] = 0.0
     v = sc.two[B_V_FUSED, :m]
     sig = sc.two[B_SIG_FUSED, :m]
     bias = sc.four[C_BIAS_FUSED, :m]
@@ -1080,7 +1087,9 @@ def build(pipe: Pipeline, names: tuple[str, ...], sensors: Sensors) -> tuple[Par
         registry.lookup("fusion", cfg.fusion).code, float(fp.eta_front), float(ap.w_s),
         float(ap.w_range), float(ap.rho), float(ap.threshold), float(fp.k1), float(fp.k2),
         float(fp.w_floor), float(fp.band), float(fp.gamma))
-    prev = np.array([pipe._prev[0], pipe._prev[1], 1.0 if pipe._fused_is_reference else 0.0])
+    prev = np.empty(N_PREV)
+    prev[PREV_T], prev[PREV_R] = pipe._prev[PREV_T], pipe._prev[PREV_R]
+    prev[PREV_FUSED_SAME] = 1.0 if pipe._fused_is_reference else 0.0
     velocity_s = VelocityState(pipe._stiff_state, pipe._radius_state, pipe._t_gnss, ref.state,
                                pipe.fused.state, prev, corner_s, pipe.kinematic._state,
                                pipe._corner_seeded)
