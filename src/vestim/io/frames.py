@@ -8,7 +8,7 @@ quantity), so that a group is copied into the frame in one strided copy.
 
 from __future__ import annotations
 
-from collections.abc import Iterable, Sequence
+from collections.abc import Iterable
 
 import numpy as np
 import pandas as pd
@@ -31,33 +31,31 @@ def columns_from_groups(groups: list[ColumnGroup]) -> dict[str, np.ndarray]:
     return cols
 
 
-def frame_from_chunks(chunks: Iterable[list[ColumnGroup]], n: int,
-                      names: Sequence[str] = ()) -> pd.DataFrame:
-    """One float64 DataFrame from consecutive chunks of column groups (n samples in all).
+def frame_from_chunks(chunks: Iterable[list[ColumnGroup]], n: int) -> pd.DataFrame:
+    """One float64 DataFrame from consecutive chunks of column groups (n samples in all), each
+    chunk with the same groups in the same order (the first fixes the columns).
 
-    The first chunk fixes the columns, unless ``names`` does (the columns of the earlier
-    pieces of a log estimated piece by piece); a later chunk fills its rows of the block, and
-    a column it lacks is NaN there. The block is filled as its transpose (pandas stores a
-    float block as (columns, samples)), so each group is one strided copy and the frame
-    is not copied again.
+    The block is filled as its transpose (pandas stores a float block as (columns, samples)),
+    so each group is one strided copy and the frame is not copied again.
+
+    Raises:
+        ValueError: a chunk's columns are not the first chunk's.
     """
-    names = list(names)
-    rows: dict[str, int] = {name: j for j, name in enumerate(names)}
-    block = np.empty((len(names), n))
+    names: list[str] = []
+    block = np.empty((0, n))
     start = 0
     for groups in chunks:
+        chunk_names = [name for g, _ in groups for name in g]
         if not names:
-            names = [name for g, _ in groups for name in g]
-            rows = {name: j for j, name in enumerate(names)}
+            names = chunk_names
             block = np.empty((len(names), n))
+        elif chunk_names != names:
+            raise ValueError(f"frame_from_chunks: a chunk at row {start} has the columns "
+                             f"{chunk_names}, not the first chunk's {names}")
         stop = start + groups[0][1].shape[0]
-        filled = np.zeros(len(names), dtype=bool)
+        j = 0
         for group_names, values in groups:
-            j = rows.get(group_names[0])
-            if j is None:  # a channel the first chunk did not have (method-dependent)
-                continue
             block[j:j + len(group_names), start:stop] = values.T if values.ndim == 2 else values
-            filled[j:j + len(group_names)] = True
-        block[~filled, start:stop] = np.nan
+            j += len(group_names)
         start = stop
     return pd.DataFrame(block.T, columns=names, copy=False)

@@ -39,6 +39,7 @@ from __future__ import annotations
 import itertools
 import logging
 import math
+import operator
 from collections.abc import Callable, Iterable, Iterator, Mapping
 from dataclasses import replace
 from pathlib import Path
@@ -88,7 +89,7 @@ from vestim.io.calibration import correct_columns, corrected_log
 from vestim.io.channels import REF_PREFIX, SPARSE
 from vestim.io.inputs import Inputs, front_angles, inputs_from_log, sample_channels
 from vestim.io.log import check_structure
-from vestim.io.sanity import validate_sample
+from vestim.io.sanity import SAMPLE_RANGES, validate_sample
 from vestim.io.vehicle import Vehicle
 from vestim.models import kinematics as kin
 from vestim.pipeline import rows as rows_kernel
@@ -159,7 +160,7 @@ class Pipeline:
         self.fused = ReferenceFilter(b.wheel_radius, b.lf, b.lr, self._xw, self._yw,
                                      self.config.reference, mass=b.mass)
         self._prev = np.array([np.nan, 0.0])  # (t, yaw rate) of the previous sample, for ṙ
-        self._fused_is_reference = True  # the fused filter has not diverged from the plain one
+        self._fused_same = True  # the fused filter has not diverged from the plain one
         # pipeline_rows' parameter and state trees (sharing the stages' arrays) and its entry
         # point for their types: made on first use, dropped when a stage's state is replaced
         self._rows: tuple[rows_kernel.Params, rows_kernel.State] | None = None
@@ -171,7 +172,7 @@ class Pipeline:
         self._y1 = np.empty((rows_kernel.N_ROW, 1))
         self._t_prev_step = -math.inf  # step()'s guard: last t, last finite value per channel
         # the last sample whose every value was finite, and its time (step()'s hold)
-        self._last_good: tuple[float, Mapping[str, float]] = (-math.inf, {})
+        self._last_good: tuple[float, tuple[str, ...], tuple[Any, ...]] = (-math.inf, (), ())
         self._t_start = np.array([np.nan])  # first sample time (validity flags' convergence)
         self._consistency_state = new_consistency_state()  # validity bit 128's test
         self._corner_seeded = np.zeros(1)  # the corner observers took the reference's v (1.0)
@@ -191,6 +192,7 @@ class Pipeline:
         self._validity_prm = validity_params(self.config.validity)
         self._unc_state = new_uncertainty_state()
         self._layout: _Layout | None = None  # step()'s channels, checked once per set
+        self._fast: _Fast | None = None  # step()'s index maps for its channels
 
     def reset(self) -> None:
         """Forget every stage's state."""
@@ -205,7 +207,7 @@ class Pipeline:
         clear_state(self._radius_state)
         self._friction_state = new_friction_state()
         self._t_prev_step = -math.inf
-        self._last_good = (-math.inf, {})
+        self._last_good = (-math.inf, (), ())
         self._health_state = new_health_state()
         self._imu_state = new_imu_state()
         self._unc_state = new_uncertainty_state()
@@ -218,6 +220,18 @@ class Pipeline:
         self._rows = None
         self._stepper = None
         self._layout = None
+
+    @property
+    def _fused_is_reference(self) -> bool:
+        """Whether the fused filter is still the plain reference filter (the compiled
+        state's flag where the trees exist)."""
+        if self._rows is not None:
+            return bool(self._rows[1].velocity.prev[rows_kernel.PREV_FUSED_SAME])
+        return self._fused_same
+
+    @_fused_is_reference.setter
+    def _fused_is_reference(self, value: bool) -> None:
+        self._fused_same = value
 
     def unverified_warning(self) -> dict[str, str | float | None] | None:
         """The consistency monitor's warning for the output metadata (the shape of
@@ -313,11 +327,13 @@ class Pipeline:
         except TypeError:
             clean = False
         if clean:
-            self._last_good = (t, sample)  # validate_sample's own copy, never changed after
+            # validate_sample's own copy, never changed after
+            self._last_good = (t, tuple(sample.keys()), tuple(sample.values()))
             self._held_now = False
             return sample
         fixed: dict[str, float] | None = None
-        t_good, good = self._last_good
+        t_good, good_keys, good_values = self._last_good
+        good = dict(zip(good_keys, good_values, strict=True))
         for key, value in sample.items():
             if key in SPARSE or key.startswith(REF_PREFIX):
                 continue
@@ -450,6 +466,26 @@ class Pipeline:
         dropped value too. This is the gate of a live feed; :func:`estimate` is the gated
         form of :meth:`run` (the whole-log checks, :func:`vestim.io.sanity.gate`).
         """
+        f = self._fast
+        if (f is not None and type(sample) is dict and sample.keys() == f.keys
+                and f.layout is self._layout):
+            vals = f.check(sample)
+            t = vals[0]
+            t_prev = self._t_prev_step
+            # every value a float, finite and in its channel's range, t a step on
+            # without a gap: validate_sample and the hold would change nothing
+            if (_FAST_TYPES.issuperset(map(type, vals)) and t > t_prev
+                    and t - t_prev <= GAP_S and all(map(operator.le, f.lo, vals))
+                    and all(map(operator.le, vals, f.hi))):
+                clean = True
+                for key, lo, hi in f.sparse:  # NaN: no fix (the sample is not "clean")
+                    v = sample[key]
+                    if type(v) not in _FAST_TYPES or not (lo <= v <= hi or v != v):
+                        break
+                    clean = clean and v == v
+                else:
+                    return self._fast_step(f, sample, vals, clean)
+        raw = sample
         sample = validate_sample(sample)
         t_new = float(sample.get("t", np.nan))
         if math.isfinite(self._t_prev_step) and t_new - self._t_prev_step > GAP_S:
@@ -463,7 +499,36 @@ class Pipeline:
             cols = {k: np.array([float(v)]) for k, v in sample.items()}
             correct_columns(cols, cal, wheel_radius=b.wheel_radius, steering_ratio=b.steering_ratio)
             sample = {k: float(v[0]) for k, v in cols.items()}
-        return self._row_step(sample)
+        out = self._row_step(sample)
+        if cal is None or not cal.groups:
+            self._fast = _fast_layout(self._fast, raw, self._layout,
+                                      self.vehicle.body.steering_ratio, self._y1)
+        return out
+
+    def _fast_step(self, f: _Fast, sample: Mapping[str, Any], vals: tuple[Any, ...],
+                   clean: bool) -> dict[str, float]:
+        """:meth:`step` of a sample that :func:`~vestim.io.sanity.validate_sample` and the
+        hold would leave as it is (every value a real number in its range, finite but for a
+        sparse channel's NaN, ``t`` on by at most :data:`GAP_S`) with the channels of the
+        sample before: its values straight into the input row by the layout's index map,
+        the compiled step, and the output row as a dict."""
+        t = vals[0]
+        self._t_prev_step = float(t)
+        if clean:
+            self._last_good = (t, f.check_keys, vals)
+        self._held_now = False
+        x = self._x1[0]
+        x[:] = f.base
+        x[f.dst] = f.read(sample)
+        if f.ratio:  # a steering-wheel angle: the road-wheel angles are it over the ratio
+            x[rows_kernel.X_DELTA:rows_kernel.X_DELTA + 2] /= f.ratio
+        step_fn = self._step_fn
+        assert step_fn is not None
+        step_fn(self._stepper, self._x1, self._y1)
+        if self.corner is not None:
+            self.corner._t_last = float(t)
+        # out has len(columns) entries by make: strict=True would cost 2 µs a sample
+        return dict(zip(f.layout.columns, f.out.tolist(), strict=False))
 
     def _trees(self, names: tuple[str, ...], sensors: rows_kernel.Sensors) -> None:
         """Make :func:`~vestim.pipeline.rows.pipeline_rows`' parameter and state trees once
@@ -491,9 +556,7 @@ class Pipeline:
 
     def _mirror(self, S: rows_kernel.State, X: np.ndarray, m: int) -> None:
         """The Python-side state that mirrors the compiled one after ``m`` rows of ``X``."""
-        prev = S.velocity.prev
-        self._prev = prev[:2]  # a view (reset() replaces it)
-        self._fused_is_reference = bool(prev[2])
+        self._prev = S.velocity.prev[:rows_kernel.PREV_R + 1]  # (t, r), a view (reset() replaces it)
         if self.corner is not None:
             self.corner._t_last = float(X[m - 1, rows_kernel.X_T])
 
@@ -573,6 +636,72 @@ class _Layout(NamedTuple):
     steering: str
     columns: tuple[str, ...]
 
+
+class _Fast(NamedTuple):
+    """What :meth:`Pipeline.step` precomputes per set of a sample's keys (``keys``, the
+    sample's own, unknown names included) for its fast path: ``check`` reads ``t`` and the
+    other channels :func:`~vestim.io.sanity.validate_sample` keeps but the sparse ones
+    (``check_keys``, in that order), whose ranges are ``lo`` ≤ value ≤ ``hi`` (``t``'s
+    unbounded: it is checked against the last one); ``sparse`` (name, low, high) of each
+    sparse channel; ``read`` reads the values that go to the input row's columns ``dst``
+    (the others stay as in ``base``: NaN for a channel the sample lacks, ``X_HELD`` 0);
+    ``ratio`` the steering ratio where the steering channel is the steering-wheel angle
+    (else 0); ``out`` the view of the output column that holds ``layout.columns``."""
+
+    keys: frozenset[str]
+    layout: _Layout
+    check: Callable[[Mapping[str, Any]], tuple[Any, ...]]
+    check_keys: tuple[str, ...]
+    lo: tuple[float, ...]
+    hi: tuple[float, ...]
+    sparse: tuple[tuple[str, float, float], ...]
+    read: Callable[[Mapping[str, Any]], tuple[Any, ...]]
+    dst: np.ndarray
+    base: np.ndarray
+    ratio: float
+    out: np.ndarray
+
+
+def _fast_layout(last: _Fast | None, sample: Mapping[str, Any], layout: _Layout | None,
+                 steering_ratio: float, y1: np.ndarray) -> _Fast | None:
+    """``last`` if it is for ``sample``'s keys and ``layout``, else a new :class:`_Fast`
+    (None for a sample that is not a dict: the fast path compares its keys as a set)."""
+    if layout is None or type(sample) is not dict:
+        return None
+    if last is not None and last.layout is layout and sample.keys() == last.keys:
+        return last
+    checked = [k for k in sample if k in SAMPLE_RANGES and k not in SPARSE]
+    check_keys = ("t", *checked)
+    sensors = layout.sensors
+    to_x: list[tuple[str, int]] = [("t", rows_kernel.X_T)]
+    if sensors.omega:
+        to_x += [(k, j) for j, k in enumerate(_OMEGA_KEYS, rows_kernel.X_OMEGA)]
+    if sensors.torque:
+        to_x += [(k, j) for j, k in enumerate(_TORQUES, rows_kernel.X_TORQUE)]
+    to_x += [(k, j) for k, j in (("ax", rows_kernel.X_AX), ("ay", rows_kernel.X_AY),
+                                 ("az", rows_kernel.X_AZ), ("yaw_rate", rows_kernel.X_R),
+                                 ("roll_rate", rows_kernel.X_P), ("pitch_rate", rows_kernel.X_Q),
+                                 ("gnss_speed", rows_kernel.X_GNSS),
+                                 ("vehicle_speed", rows_kernel.X_VSPEED)) if k in sample]
+    left, right = ("delta_fl", "delta_fr") if layout.steering == "delta_fl" else (
+        layout.steering, layout.steering)
+    to_x += [(left, rows_kernel.X_DELTA), (right, rows_kernel.X_DELTA + 1)]
+    base = np.full(rows_kernel.N_X, np.nan)
+    base[rows_kernel.X_HELD] = 0.0
+    names = [k for k, _ in to_x]
+    return _Fast(
+        frozenset(sample.keys()), layout, operator.itemgetter(*check_keys), check_keys,
+        (-math.inf, *(SAMPLE_RANGES[k][0] for k in checked)),
+        (math.inf, *(SAMPLE_RANGES[k][1] for k in checked)),
+        tuple((k, *SAMPLE_RANGES[k][:2]) for k in sample if k in SPARSE and k in SAMPLE_RANGES),
+        operator.itemgetter(*names), np.array([j for _, j in to_x], dtype=np.intp), base,
+        steering_ratio if layout.steering == "steering_wheel_angle" else 0.0,
+        y1[:len(layout.columns), 0])
+
+
+_FAST_TYPES = frozenset((float, np.float64))
+"""The value types :meth:`Pipeline.step`'s fast path takes (others go through
+:func:`~vestim.io.sanity.validate_sample`)."""
 
 _TORQUES = tuple(f"torque_{c}" for c in CORNERS)
 

@@ -283,10 +283,16 @@ class VelocityParams(NamedTuple):
     gamma: float
 
 
+PREV_T, PREV_R, PREV_FUSED_SAME, N_PREV = range(4)
+"""Entries of :attr:`VelocityState.prev`: the previous sample's time (s) and yaw rate (rad/s),
+whose ṙ the corner observers take (:func:`~vestim.models.kinematics.yaw_acceleration_kernel`
+reads ``prev[:2]`` in this order), and whether the fused filter is still the plain one (1/0)."""
+
+
 class VelocityState(NamedTuple):
-    """The velocity stage's states: ``prev`` = [t, yaw rate] of the previous sample (ṙ) and
-    whether the fused filter is still the plain one (1/0); ``t_gnss`` (1,) the previous
-    sample's time (a fix's weight), s."""
+    """The velocity stage's states: ``prev`` (:data:`N_PREV`,) = the previous sample's t and
+    yaw rate (ṙ) and whether the fused filter is still the plain one (1/0), at the
+    ``PREV_*`` indices; ``t_gnss`` (1,) the previous sample's time (a fix's weight), s."""
 
     stiffness: StiffnessState
     radius: RadiusState
@@ -416,9 +422,11 @@ def pipeline_rows(P: Params, S: State, X: np.ndarray, Y: np.ndarray, start: int,
     (X: (≥ stop − start, :data:`N_X`)) and its quantities go to ``Y[P.col[j], k]`` (Y:
     (columns, n), the transpose of the output frame). ``S`` is advanced; the result does
     not depend on how the samples are split between calls."""
+    sensors, fp, fs, vp, vs = P.sensors, P.force, S.force, P.velocity, S.velocity
+    pp, ps, sc, col = P.post, S.post, S.scratch, P.col
     for a in range(start, stop, BLOCK):
         b = min(a + BLOCK, stop)
-        _block(P, S, X[a - start:b - start], Y, a)
+        _block(sensors, fp, fs, vp, vs, pp, ps, sc, col, X[a - start:b - start], Y, a)
 
 
 @njit(**_JIT)
@@ -441,15 +449,18 @@ def _put4(Y: np.ndarray, col: np.ndarray, j: int, values: np.ndarray, k0: int) -
 
 
 @njit(**_JIT)
-def _block(P: Params, S: State, x: np.ndarray, Y: np.ndarray, k0: int) -> None:
+def _block(sensors: Sensors, fp: ForceParams, fs: ForceState, vp: VelocityParams,
+           vs: VelocityState, pp: PostParams, ps: PostState, sc: Scratch, col: np.ndarray,
+           x: np.ndarray, Y: np.ndarray, k0: int) -> None:
     """The samples ``x`` (m, :data:`N_X`) through the stages, stage by stage, into Y's
     columns k0 … k0 + m − 1 (the sample-by-sample recursions of each stage: the split into
-    blocks changes no number). The intermediates are views of ``S.scratch``."""
-    fp = P.force
-    fs = S.force
-    vp = P.velocity
-    vs = S.velocity
-    sc = S.scratch
+    blocks changes no number). The intermediates are views of ``sc`` (State.scratch).
+
+    It takes the trees' parts (Params.sensors, .force, .velocity, .post, .col; State.force,
+    .velocity, .post, .scratch), not the two trees: each array of a tree that a compiled
+    function takes, or reads into a variable, costs a reference count increment and
+    decrement per call (≈ 200 arrays a level; :func:`step_sample` reads them from the
+    :class:`Stepper` straight into this call)."""
     m = x.shape[0]
     t = sc.one[A_T, :m]
     omega = sc.four[C_OMEGA, :m]
@@ -474,7 +485,6 @@ def _block(P: Params, S: State, x: np.ndarray, Y: np.ndarray, k0: int) -> None:
     radius = fp.radius
     xw, yw = fp.xw, fp.yw
     att = fp.attitude
-    sensors = P.sensors
     # --- force stage (ForceEstimator.advance) ---
     ax = sc.one[A_AX, :m]
     chan = sc.one[A_CHAN, :m]
@@ -524,7 +534,8 @@ def _block(P: Params, S: State, x: np.ndarray, Y: np.ndarray, k0: int) -> None:
     fz = normal_loads_kernel(lxa, lya, lza, roll, pitch, p_rate, q_rate, roll_acc, pitch_acc,
                              fp.normal, fp.dynamic)
     if not sensors.torque:
-        torque = _chassis_torques(fp, fs, sc, t, omega, fxa, fya, delta, fz)
+        torque = _chassis_torques(fp.lon, fs.inertia, fp.chassis, sc, t, omega, fxa, fya,
+                                  delta, fz)
     teff = torque_less_rolling_resistance(torque, omega, fz, fp.rolling_moment)
     fx = sc.four[C_FX, :m]
     sig_fx = sc.four[C_SIG_FX, :m]
@@ -610,7 +621,7 @@ def _block(P: Params, S: State, x: np.ndarray, Y: np.ndarray, k0: int) -> None:
         bias[:] = np.nan
     else:
         prev = vs.prev
-        same = method == FUSED and prev[2] == 1.0
+        same = method == FUSED and prev[PREV_FUSED_SAME] == 1.0
         if same:
             # While it is the plain filter the fused filter's state is not used: it holds the
             # plain filter's state before this block, the start of its first own step.
@@ -623,8 +634,8 @@ def _block(P: Params, S: State, x: np.ndarray, Y: np.ndarray, k0: int) -> None:
         sig = sig_ref
         bias = bias_ref
         if method != REFERENCE and sensors.omega:  # without them "fused" is the reference
-            vx_f, n_high = _corners_vx(vp, fp, vs.corner, prev, vs.seeded, S.post.t_start,
-                                       SEED_AT * P.post.validity.converge_s, sc, t, omega_v,
+            vx_f, n_high = _corners_vx(vp, fp, vs.corner, prev, vs.seeded, ps.t_start,
+                                       SEED_AT * pp.validity.converge_s, sc, t, omega_v,
                                        delta, r, fxa, fya, mu_x, mu_y, v_ref, bias_ref, conf)
             if method == FUSED:
                 v, sig, bias = _fused(vp.reference, vs.fused, prev, sc, t, omega_v, torque,
@@ -655,7 +666,6 @@ def _block(P: Params, S: State, x: np.ndarray, Y: np.ndarray, k0: int) -> None:
         omega_v = omega  # the speed's, as the uncertainty stage reads them
     sa = sc.four[C_SA, :m]
     slip_angle_kernel(vxt.reshape(-1), vyt.reshape(-1), 0.5, sa.reshape(-1))
-    col = P.col
     _put(Y, col, 0, t, k0)
     _put(Y, col, 1, vx_cg, k0)
     _put(Y, col, 2, vy_cg, k0)
@@ -670,27 +680,29 @@ def _block(P: Params, S: State, x: np.ndarray, Y: np.ndarray, k0: int) -> None:
     _put(Y, col, j + 4, scale, k0)
     _put(Y, col, j + 5, latency, k0)
     _put4(Y, col, _R_CONF, conf, k0)
-    _post(P.post, S.post, sc, x, t, ax, v, sig, c_y, bias[:, 3],
+    _post(pp, ps, sc, x, t, ax, v, sig, c_y, bias[:, 3],
           Corners(fx, fy, fz, sig_fx, sig_fy, sr, sa, vxt, vyt, delta, omega_v), radius, Y, col,
           k0)
 
 
 @njit(**_JIT)
-def _chassis_torques(fp: ForceParams, fs: ForceState, sc: Scratch, t: np.ndarray,
-                     omega: np.ndarray, fxa: np.ndarray, fya: np.ndarray, delta: np.ndarray,
+def _chassis_torques(lon: LongitudinalParams, inertia: LongitudinalState,
+                     ch: ChassisKernelParams, sc: Scratch, t: np.ndarray, omega: np.ndarray,
+                     fxa: np.ndarray, fya: np.ndarray, delta: np.ndarray,
                      fz: np.ndarray) -> np.ndarray:
     """Net wheel torques (m, 4), N m, for a log without them (ForceEstimator.advance): the
     chassis equation with ω̇ from the longitudinal method run on zero torque (its output is
     −I_w ω̇̂/R, so the main run subtracts the same ω̇̂ and a wheel spinning up keeps only its
-    share of the tire force)."""
+    share of the tire force). ``lon`` ForceParams.lon, ``inertia`` ForceState.inertia, ``ch``
+    ForceParams.chassis (the parts read, not the force trees: each array taken is
+    reference-counted per call)."""
     m = t.shape[0]
     f_inertia = sc.four[C_F_INERTIA, :m]
     zero = sc.four[C_ZERO4, :m]
     zero[:] = 0.0
     unused = sc.four[C_NAN4, :m]
     unused[:] = np.nan
-    longitudinal_rows(fp.lon, fs.inertia, t, omega, zero, f_inertia, unused)
-    ch = fp.chassis
+    longitudinal_rows(lon, inertia, t, omega, zero, f_inertia, unused)
     gain = -ch.radius / ch.wheel_inertia
     omega_dot = sc.four[C_OMEGA_DOT, :m]
     delta_front = sc.one[A_DELTA_FRONT, :m]
@@ -728,7 +740,7 @@ def _corners_vx(vp: VelocityParams, fp: ForceParams, cs: CornerState, prev: np.n
     radius = fp.radius
     m = t.shape[0]
     yaw_acc = sc.one[A_YAW_ACC, :m]
-    yaw_acceleration_kernel(t, r, prev, yaw_acc)  # prev[:2]: the previous (t, r)
+    yaw_acceleration_kernel(t, r, prev, yaw_acc)  # prev[PREV_T], prev[PREV_R]: (t, r)
     axc = sc.one[A_AXC, :m]
     ayc = sc.one[A_AYC, :m]
     for i in range(m):
@@ -839,7 +851,8 @@ def _fused(rp: ReferenceKernelParams, fused: ReferenceState, prev: np.ndarray, s
     (``n_high``). Returns its (v, σ, bias), the reference filter's while the fused one has
     not yet diverged from it (the reference filter's are the views B_V_REF, B_SIG_REF,
     C_BIAS_REF of ``sc``). ``rp`` the reference filter's parameters, ``fused`` the fused
-    filter's state, ``prev`` = VelocityState.prev (its [2] set to 0 once they differ)."""
+    filter's state, ``prev`` = VelocityState.prev (its [PREV_FUSED_SAME] set to 0 once
+    they differ)."""
     m = t.shape[0]
     any_slip = False
     for i in range(m):
@@ -849,7 +862,7 @@ def _fused(rp: ReferenceKernelParams, fused: ReferenceState, prev: np.ndarray, s
         extra_var[i, 1] = rp.sigma_corner_slip ** 2 if slipping else np.nan
     if same and not any_slip:
         return sc.two[B_V_REF, :m], sc.two[B_SIG_REF, :m], sc.four[C_BIAS_REF, :m]
-    prev[2] = 0.0
+    prev[PREV_FUSED_SAME] = 0.0
     v = sc.two[B_V_FUSED, :m]
     sig = sc.two[B_SIG_FUSED, :m]
     bias = sc.four[C_BIAS_FUSED, :m]
@@ -980,24 +993,36 @@ def new_health_buffers(wheel: HealthKernelParams, wheel_state: HealthState,
 
 
 class Stepper(structref.StructRefProxy):
-    """The trees held by compiled code (``Stepper(P, S, H)``: the pipeline's parameters
-    and state and the health stages' :class:`Health`): a call of :func:`step_sample`
-    unboxes one pointer instead of the ≈ 150 arrays of the trees (≈ 20 µs a call). It
-    shares the trees' arrays."""
+    """The trees held by compiled code, as the parts :func:`_block` takes (the pipeline's
+    parameters and state, :class:`Params` and :class:`State`, field by field) and the
+    health stages' :class:`Health`: a call of :func:`step_sample` unboxes one pointer
+    instead of the ≈ 200 arrays of the trees (≈ 20 µs a call), and reads each part once
+    into the block's call. It shares the trees' arrays."""
 
-    P: Params  # the fields, for the type checker (define_proxy makes the properties)
-    S: State
+    sensors: Sensors  # the fields, for the type checker (define_proxy makes the properties)
+    force_p: ForceParams
+    force_s: ForceState
+    velocity_p: VelocityParams
+    velocity_s: VelocityState
+    post_p: PostParams
+    post_s: PostState
+    scratch: Scratch
+    col: np.ndarray
     H: Health
 
 
-structref.define_proxy(Stepper, _StepperType, ["P", "S", "H"])
+structref.define_proxy(Stepper, _StepperType, ["sensors", "force_p", "force_s", "velocity_p",
+                                               "velocity_s", "post_p", "post_s", "scratch",
+                                               "col", "H"])
 
 
 @njit(**_JIT)
 def new_stepper(P: Params, S: State, H: Health) -> Stepper:
-    """``Stepper(P, S, H)`` made by compiled code that is cached: StructRefProxy's own
-    constructor is compiled anew in every process (≈ 6 s at a process's first step())."""
-    return Stepper(P, S, H)
+    """The :class:`Stepper` of ``P``, ``S`` and ``H``, made by compiled code that is cached:
+    StructRefProxy's own constructor is compiled anew in every process (≈ 6 s at a
+    process's first step())."""
+    return Stepper(P.sensors, P.force, S.force, P.velocity, S.velocity, P.post, S.post,
+                   S.scratch, P.col, H)
 
 
 @njit(**_JIT)
@@ -1007,11 +1032,13 @@ def step_sample(h: Stepper, X: np.ndarray, Y: np.ndarray) -> None:
     piece: the faulty readings replaced in ``X``, their health into its health columns,
     ``X_HELD`` set where one was replaced) and then :func:`pipeline_rows` into Y's column
     0: what :meth:`Pipeline.step` calls. A channel the Sensors do not measure is NaN in
-    ``X`` (the wheel speeds, ``ax``). Each tree is read from ``h`` once: every read of a
-    tree takes and later drops a reference to each of its arrays (≈ 130), and that
-    reference counting, not allocation, is the largest cost of this call (``perf``: a
-    third of it in ``NRT_incref``/``NRT_decref``)."""
-    P, S, H = h.P, h.S, h.H
+    ``X`` (the wheel speeds, ``ax``). Each part of the trees is read from ``h`` once,
+    straight into :func:`_block`'s call: every read of a tree takes and later drops a
+    reference to each of its arrays (≈ 200 in all), and that reference counting, not
+    allocation, is the largest cost of this call (``perf``: 40 % of its compiled time in
+    ``NRT_incref``/``NRT_decref`` before the block took the parts instead of the trees)."""
+    H = h.H
+    sensors = h.sensors
     x = X[0]
     t = x[X_T]
     held = x[X_HELD] != 0.0
@@ -1019,7 +1046,7 @@ def step_sample(h: Stepper, X: np.ndarray, Y: np.ndarray) -> None:
     for c in range(4):
         w[c] = x[X_OMEGA + c]
         x[X_HEALTH_OMEGA + c] = 1.0
-    if P.sensors.omega:
+    if sensors.omega:
         wheel_health_step(H.wheel, H.wheel_state, t, w, out, health)
         if health[0] + health[1] + health[2] + health[3] < 4.0:
             held = True
@@ -1032,13 +1059,15 @@ def step_sample(h: Stepper, X: np.ndarray, Y: np.ndarray) -> None:
                     health)
     if min(health[0], health[1], health[2]) != 1.0:
         held = True
-        if P.sensors.ax:
+        if sensors.ax:
             x[X_AX] = out[0]
         x[X_AY], x[X_R] = out[1], out[2]
     for c in range(3):
         x[X_HEALTH_IMU + c] = health[c]
     x[X_HELD] = 1.0 if held else 0.0
-    _block(P, S, X, Y, 0)  # pipeline_rows(P, S, X, Y, 0, 1): one block, X[0:1] = X
+    # pipeline_rows(P, S, X, Y, 0, 1): one block, X[0:1] = X
+    _block(sensors, h.force_p, h.force_s, h.velocity_p, h.velocity_s, h.post_p, h.post_s,
+           h.scratch, h.col, X, Y, 0)
 
 
 def columns(names: tuple[str, ...]) -> np.ndarray:
@@ -1080,7 +1109,9 @@ def build(pipe: Pipeline, names: tuple[str, ...], sensors: Sensors) -> tuple[Par
         registry.lookup("fusion", cfg.fusion).code, float(fp.eta_front), float(ap.w_s),
         float(ap.w_range), float(ap.rho), float(ap.threshold), float(fp.k1), float(fp.k2),
         float(fp.w_floor), float(fp.band), float(fp.gamma))
-    prev = np.array([pipe._prev[0], pipe._prev[1], 1.0 if pipe._fused_is_reference else 0.0])
+    prev = np.empty(N_PREV)
+    prev[PREV_T], prev[PREV_R] = pipe._prev[PREV_T], pipe._prev[PREV_R]
+    prev[PREV_FUSED_SAME] = 1.0 if pipe._fused_is_reference else 0.0
     velocity_s = VelocityState(pipe._stiff_state, pipe._radius_state, pipe._t_gnss, ref.state,
                                pipe.fused.state, prev, corner_s, pipe.kinematic._state,
                                pipe._corner_seeded)
