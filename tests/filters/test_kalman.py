@@ -12,6 +12,7 @@ from hypothesis import strategies as st
 
 from vestim.filters.kalman import (
     _joseph,
+    direct_update,
     kalman_update,
     kalman_update_scalar,
     kalman_update_scalar3,
@@ -339,3 +340,30 @@ def test_ukf_update3_select02_is_the_general_update_and_the_ukf_kernels(seed):
         xb, Pb = written_out(Pm)
         xr, Pr = _ukf_update_as_written(x, Pm, r0, r2, nu[0], nu[1])
         assert np.array_equal(xb, xr) and np.array_equal(Pb, Pr)
+
+
+@settings(max_examples=100, deadline=None)
+@given(_case)
+def test_direct_update_is_the_textbook_update_of_one_component(case):
+    """direct_update of component i is the textbook update with H = e_i (to round-off, as
+    the Joseph form above: it keeps P − c cᵀ/s), returns the innovation, and a measurement
+    beyond the gate (ν² > gate²·s) is rejected: NaN, state and covariance untouched."""
+    n, _, seed = case
+    rng = np.random.default_rng(seed)
+    P = _spd(rng, n)
+    x = rng.standard_normal(n)
+    i = int(rng.integers(n))
+    r = 0.3
+    z = x[i] + 0.7
+    H = np.zeros((1, n))
+    H[0, i] = 1.0
+    xr, Pr = _textbook(x, P, H, np.array([[r]]), np.array([0.7]))
+    xk, Pk = x.copy(), P.copy()
+    assert direct_update(xk, Pk, i, z, r, np.inf, np.empty((1, n))) == z - x[i]
+    np.testing.assert_allclose(xk, xr, rtol=1e-9, atol=1e-9 * np.abs(xr).max())
+    np.testing.assert_allclose(Pk, Pr, rtol=0, atol=1e-9 * np.abs(P).max())
+    gate = 0.7 / np.sqrt(P[i, i] + r) * 0.99  # just inside |ν| = 0.7: rejected
+    xg, Pg = x.copy(), P.copy()
+    assert np.isnan(direct_update(xg, Pg, i, z, r, gate, np.empty((1, n))))
+    np.testing.assert_array_equal(xg, x)
+    np.testing.assert_array_equal(Pg, P)

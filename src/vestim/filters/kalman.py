@@ -24,7 +24,9 @@ arrays are passed in, as in :mod:`vestim.filters.linalg`):
   sums P_xy, P_yy equal P̄ Hᵀ and H P̄ Hᵀ + R exactly and the update is a
   linear one. The scalar kernel is the vector one for m = 1 without the Cholesky
   factorisation (S is a number); :func:`kalman_update_scalar3` is it for n = 3 on
-  scalars, bit for bit.
+  scalars, bit for bit. :func:`direct_update` is the scalar update of one component
+  measured directly (h = e_i) with an innovation gate, in the form P − c cᵀ/s that the
+  velocity reference filter keeps (its wheel-speed, GNSS and tire pseudo-measurements).
 
 * :func:`ukf_update` — the unscented update from sigma-point statistics (000
   eq. (11)–(12), 004 eq. (5)): K = P_xy P_yy⁻¹ by a Cholesky solve
@@ -375,3 +377,31 @@ def ukf_update3_select02(x0: float, x1: float, x2: float, p00: float, p01: float
     n22 = p22 - (g20 * p20 + g22 * p22)
     return (x0, x1, x2, n00, 0.5 * (n01 + n10), 0.5 * (n02 + n20), n11, 0.5 * (n12 + n21),
             n22)
+
+
+@njit(**_JIT)
+def direct_update(x: np.ndarray, P: np.ndarray, i: int, z: float, r: float, gate: float,
+                  work: np.ndarray) -> float:
+    """Kalman update of state ``i`` by a direct measurement z = x[i] + v, var(v) = r
+    (units of x[i]); returns the innovation (NaN if rejected beyond ``gate`` innovation
+    standard deviations, the state untouched).
+
+    :func:`kalman_update_scalar` for h = e_i, written as K = P[:, i]/s, P ← P − c cᵀ/s
+    (c = P[:, i], s = P[i, i] + r) over the full state rather than the Joseph form: equal
+    for the optimal gain, and the floats the velocity reference filter has always kept
+    (its r-coupled prediction makes a v_x measurement inform v_y and the other way round).
+    ``work`` (≥ 1 row of the state's length) is scratch space.
+    """
+    s = P[i, i] + r
+    innov = z - x[i]
+    if innov * innov > gate * gate * s:
+        return np.nan
+    n = x.shape[0]
+    c = work[0]
+    for a in range(n):
+        c[a] = P[a, i]
+    for a in range(n):
+        x[a] += c[a] / s * innov
+        for b in range(n):
+            P[a, b] -= c[a] * c[b] / s
+    return innov

@@ -45,6 +45,7 @@ import numpy as np
 from numba import njit
 
 from vestim.constants import G
+from vestim.filters.kalman import direct_update
 from vestim.models.kinematics import middle_wheel_speed
 from vestim.params import check_ranges, pack
 
@@ -601,31 +602,6 @@ def gnss_calibration(prm: RadiusKernelParams, st: RadiusState, t: np.ndarray,
 
 
 @njit(**_JIT)
-def _direct_update(x: np.ndarray, P: np.ndarray, i: int, z: float, r: float, gate: float,
-                   work: np.ndarray) -> float:
-    """Kalman update of state ``i`` by a direct measurement z = x[i] + v, var(v) = r;
-    returns the innovation (NaN if rejected beyond ``gate`` innovation standard deviations).
-
-    K = P[:, i]/s, P ← P − K P[i, :] over the full state (for the optimal gain this equals
-    the Joseph form): the r-coupling of the prediction makes a v_x measurement inform v_y
-    and the other way round. ``work`` (≥ 1 row of the state's length) is scratch space.
-    """
-    s = P[i, i] + r
-    innov = z - x[i]
-    if innov * innov > gate * gate * s:
-        return np.nan
-    n = x.shape[0]
-    c = work[0]
-    for a in range(n):
-        c[a] = P[a, i]
-    for a in range(n):
-        x[a] += c[a] / s * innov
-        for b in range(n):
-            P[a, b] -= c[a] * c[b] / s
-    return innov
-
-
-@njit(**_JIT)
 def _lateral_update(x: np.ndarray, P: np.ndarray, z: float, alpha: float, r_white: float,
                     sig_col: float, inflate: float, s_side: float, gate: float,
                     work: np.ndarray) -> float:
@@ -645,7 +621,7 @@ def _lateral_update(x: np.ndarray, P: np.ndarray, z: float, alpha: float, r_whit
         return np.nan
     if (alpha < 0.0 and innov > 0.0) or (alpha > 0.0 and innov < 0.0):
         sig_col *= 1.0 + (innov / s_side) ** 2
-    return _direct_update(x, P, VY, z, r_white + sig_col * sig_col * inflate, np.inf, work)
+    return direct_update(x, P, VY, z, r_white + sig_col * sig_col * inflate, np.inf, work)
 
 
 class ReferenceKernelParams(NamedTuple):
@@ -987,7 +963,7 @@ def _reference_rows(prm: ReferenceKernelParams, st: ReferenceState, start: int, 
             if innov_pred * innov_pred > prm.gate * prm.gate * (P[VX, VX] + sig * sig):
                 res = np.nan
             else:
-                res = _direct_update(x, P, VX, wheel_v[i],
+                res = direct_update(x, P, VX, wheel_v[i],
                                      r_w + slip_part * slip_part * inflate_w, np.inf, work)
             out_trust[k, i] = np.inf if np.isnan(res) else sig
             if not np.isnan(res):
@@ -1011,7 +987,7 @@ def _reference_rows(prm: ReferenceKernelParams, st: ReferenceState, start: int, 
             if not np.isnan(extra_v[k, j]):
                 # A corner observer's error persists like a wheel's slip error: same inflation.
                 n_extra += 1
-                res = _direct_update(x, P, VX, extra_v[k, j], extra_var[k, j] * inflate_w,
+                res = direct_update(x, P, VX, extra_v[k, j], extra_var[k, j] * inflate_w,
                                      prm.gate, work)
                 if np.isnan(res):
                     innov_extra = extra_v[k, j] - x[VX]
