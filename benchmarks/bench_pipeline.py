@@ -2,7 +2,10 @@
 as ratios to a bare compiled 1-state UKF over four corners measured in the same process
 (:func:`stage_times.bare_ukf`).
 
-Run:  .venv/bin/python benchmarks/bench_pipeline.py
+Run:  .venv/bin/python benchmarks/bench_pipeline.py [--configs]
+
+``--configs`` also times ``step()`` of every registered configuration (the product of the
+stages' methods in :mod:`vestim.estimators.registry`), best of 3 × 1000 samples each.
 
 Issue 27's targets: the default pipeline's hour ≤ 20× the bare kernel (≈ 0.5 s); ``step()``
 ≤ 10 µs for every registered configuration; peak memory ≤ 1 GiB. Also printed: how much of a
@@ -13,6 +16,8 @@ first ``step()`` takes once the kernels are cached (building the compiled steppe
 
 from __future__ import annotations
 
+import argparse
+import itertools
 import resource
 import subprocess
 import sys
@@ -22,15 +27,17 @@ import numpy as np
 import pandas as pd
 
 from stage_times import bare_ukf
+from vestim.estimators import registry
 from vestim.filters.ukf import ukf_weights
 from vestim.io import load_vehicle
-from vestim.pipeline import Pipeline
+from vestim.pipeline import Pipeline, PipelineConfig
 from vestim.sim import get_maneuver, simulate
 
 FIRST_STEP = """
 import time
+from vestim.estimators import registry
 from vestim.io import load_vehicle
-from vestim.pipeline import Pipeline
+from vestim.pipeline import Pipeline, PipelineConfig
 from vestim.sim import get_maneuver, simulate
 veh = load_vehicle("hashemi_suv")
 row = simulate(get_maneuver("dlc_snow"), veh, seed=1).iloc[0].to_dict()
@@ -54,7 +61,43 @@ def bare_ns(z: np.ndarray) -> float:
     return best / z.size * 1e9
 
 
+def step_us(pipe: Pipeline, rows: list[dict[str, float]], passes: int = 5) -> float:
+    """``pipe.step`` over rows 50 … 1049 after 50 to settle, best of ``passes``, µs per sample."""
+    best = float("inf")
+    for _ in range(passes):
+        pipe.reset()
+        for r in rows[:50]:
+            pipe.step(r)
+        t0 = time.perf_counter()
+        for r in rows[50:1050]:
+            pipe.step(r)
+        best = min(best, (time.perf_counter() - t0) / 1000)
+    return best * 1e6
+
+
+def every_configuration(veh: object, rows: list[dict[str, float]]) -> None:
+    """``step()`` of every registered configuration (force × normal × velocity × fusion),
+    best of 3 × 1000 samples each: the distribution and the slowest five."""
+    stages = {"force": "force", "normal": "normal", "velocity": "velocity", "fusion": "fusion"}
+    choices = [registry.names(stage) for stage in stages]
+    times = []
+    for combo in itertools.product(*choices):
+        cfg = PipelineConfig(**dict(zip(stages, combo, strict=True)))
+        times.append((step_us(Pipeline(veh, cfg), rows, passes=3), "-".join(combo)))
+    times.sort()
+    us = np.array([t for t, _ in times])
+    print(f"step(), {len(times)} registered configurations: median {np.median(us):.1f} us, "
+          f"90th percentile {np.percentile(us, 90):.1f}, fastest {us[0]:.1f} ({times[0][1]}), "
+          f"slowest {us[-1]:.1f} ({times[-1][1]}); ≤ 10 us: {int(np.sum(us <= 10))}")
+    for t, name in times[-5:]:
+        print(f"  {name}: {t:.1f} us")
+
+
 def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--configs", action="store_true",
+                        help="also time step() of every registered configuration")
+    args = parser.parse_args()
     veh = load_vehicle("hashemi_suv")
     log = simulate(get_maneuver("dlc_snow"), veh, seed=1)
     log = log.drop(columns=[c for c in log.columns if c.startswith("ref_")])
@@ -111,6 +154,8 @@ def main() -> None:
     first = subprocess.run([sys.executable, "-c", FIRST_STEP], capture_output=True, text=True,
                            check=True)
     print(f"a fresh process's first step() (kernels cached): {float(first.stdout):.2f} s")
+    if args.configs:
+        every_configuration(veh, rows)
 
 
 if __name__ == "__main__":

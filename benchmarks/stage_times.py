@@ -1,14 +1,15 @@
 """Where the default pipeline's time goes (issue 27), in ns per corner-step, against a bare
 compiled 1-state UKF over four corners measured in the same process.
 
-Run:  .venv/bin/python benchmarks/stage_times.py [--samples 720000]
+Run:  .venv/bin/python benchmarks/stage_times.py [--samples 720000] [--velocity fused]
 
 One hour of 200 Hz (the simulator's dlc_snow tiled), best of 3. Every stage runs inside the
 one compiled composition (``vestim.pipeline.rows.pipeline_rows``); here each stage's kernel
 is also run alone, through its estimator's own entry point, on the same log's inputs (the
 force stage's outputs feeding the velocity stages), and "composition" is what the pipeline
 costs beyond the sum: the kinematics between the stages, the copies into blocks, the
-output framing.
+output framing. ``--velocity`` times the pipeline with another velocity method (its corner
+observers, where it runs them, as a stage of their own).
 """
 
 from __future__ import annotations
@@ -24,6 +25,7 @@ import pandas as pd
 from numba import njit
 
 from vestim.constants import CORNERS
+from vestim.estimators import registry
 from vestim.estimators.force import ForceEstimator
 from vestim.estimators.friction import friction_potential, new_friction_state
 from vestim.estimators.health import imu_health_kernel, new_imu_state, wheel_health_kernel
@@ -84,7 +86,11 @@ def best_of(fn: Callable[[], Any], repeats: int = 3) -> float:
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__)
     ap.add_argument("--samples", type=int, default=720_000)
-    n = ap.parse_args().samples
+    ap.add_argument("--velocity", default=registry.default("velocity"),
+                    help="the velocity method (default: the pipeline's default)")
+    args = ap.parse_args()
+    n, velocity = args.samples, args.velocity
+    corner_method = registry.lookup("velocity", velocity).corner
     veh = load_vehicle("hashemi_suv")
     log = simulate(get_maneuver("dlc_snow"), veh, seed=1)
     log = log.drop(columns=[c for c in log.columns if c.startswith("ref_")])
@@ -102,7 +108,8 @@ def main() -> None:
     bare()
     t_bare = best_of(bare) / steps * 1e9
 
-    pipe = Pipeline(veh)
+    cfg = PipelineConfig(velocity=velocity)
+    pipe = Pipeline(veh, cfg)
     pipe.run(big.iloc[:2000])  # compile
     total = best_of(lambda: pipe.run(big)) / steps * 1e9
 
@@ -117,7 +124,6 @@ def main() -> None:
         imu_health_kernel(pipe._imu_prm, new_imu_state(), u.t, u.ax, u.ay, u.yaw_rate,
                           omega_out, delta, imu[0], imu[1], imu[2], imu_health)
 
-    cfg = PipelineConfig()
     force = ForceEstimator(veh, cfg.force_config())
     res = force.advance(replace(u))
 
@@ -146,7 +152,7 @@ def main() -> None:
                     delta, fy_sd=res["fy_sd"])
 
     est = pipe.run(big)
-    corner = CornerVelocityEstimator(veh, "lugre_kf")
+    corner = CornerVelocityEstimator(veh, corner_method or "lugre_kf")
     a_xt = np.repeat(res["f_x"][:, None], 4, axis=1)
     a_yt = np.repeat(res["f_y"][:, None], 4, axis=1)
     vyt = est[[f"vyt_{c}" for c in CORNERS]].to_numpy()
@@ -177,17 +183,18 @@ def main() -> None:
                  cfg.validity, vel["bias"][:, 3].copy())
 
     rows = []
+    corners = ((f"corner observers ({corner_method})", corner_observers),) if corner_method else ()
     for name, fn in (("force stage (attitude, loads, longitudinal and lateral UKFs)",
-                      force_stage), ("reference filter", reference_filter),
-                     ("corner observers (LuGre KF)", corner_observers),
+                      force_stage), ("reference filter", reference_filter), *corners,
                      ("health stages (wheel, IMU)", health_stages),
                      ("friction potential", friction), ("uncertainty (σ)", sigma),
                      ("validity flags", flags), ("cornering stiffness", stiffness)):
         fn()
         rows.append((name, best_of(fn) / steps * 1e9))
-    rows.append(("composition (the rest: kinematics, blocks, framing; the fused filter's "
-                 "state copy)", total - sum(ns for _, ns in rows)))
-    print(f"default Pipeline.run, {n} samples: {total * steps / 1e9:.3f} s = {total:.0f} ns "
+    fused = "; the fused filter's second reference filter" if velocity == "fused" else ""
+    rows.append((f"composition (the rest: kinematics, blocks, framing{fused})",
+                 total - sum(ns for _, ns in rows)))
+    print(f"Pipeline.run, velocity {velocity}, {n} samples: {total * steps / 1e9:.3f} s = {total:.0f} ns "
           f"per corner-step = {total / t_bare:.0f}x the bare 1-state UKF ({t_bare:.1f} ns)")
     print("| stage | ns per corner-step | share | × bare UKF |")
     print("|---|---|---|---|")

@@ -251,7 +251,7 @@ def test_estimate_metadata_says_how_it_was_made(tmp_path):
     meta = read_log(out).attrs
     assert meta["vestim_version"] == __version__
     assert meta["vehicle_sha256"] == hashlib.sha256(veh.read_bytes()).hexdigest()
-    assert json.loads(meta["config"])["velocity"] == "fused"
+    assert json.loads(meta["config"])["velocity"] == "reference"
 
 
 def test_score_coverage_table(tmp_path):

@@ -235,7 +235,7 @@ def estimate_cmd(
     log_path: Annotated[Path, typer.Argument(metavar="LOG", help="Drive log (.csv or .parquet).")],
     out: Annotated[Path, typer.Option("--out", help="Output log of estimates (.csv or .parquet).")],
     vehicle: VehicleOpt = "",
-    velocity: Annotated[str | None, typer.Option(help="Velocity stage (default fused); `vestim "
+    velocity: Annotated[str | None, typer.Option(help="Velocity stage (default reference); `vestim "
                                                  "methods velocity` lists the choices.")] = None,
     fusion: Annotated[str | None, typer.Option(help="Corner-to-CG fusion (default axle); `vestim "
                                                "methods fusion` lists the choices.")] = None,

@@ -29,7 +29,8 @@ def test_registry_lists_what_the_estimators_accept():
     assert set(registry.names("force")) == set(FORCE_METHODS)
     assert set(registry.names("normal")) == set(MODES)
     assert set(registry.names("fusion")) == set(FUSION_METHODS)
-    assert registry.names("velocity") == ("fused", "reference", "kinematic", "kf", "ukf", "lpv")
+    # the default first, then in registration order
+    assert registry.names("velocity") == ("reference", "fused", "kinematic", "kf", "ukf", "lpv")
     for m in registry.methods("velocity"):  # the corner observer each runs exists
         assert m.corner is None or m.corner in CORNER_OBSERVERS, (m.name, m.corner)
     for stage in registry.STAGES:
@@ -99,7 +100,7 @@ def test_cli_methods_lists_every_registered_method():
     rows = [line.split("\t") for line in res.output.splitlines()]
     assert [(r[0], r[1].rstrip("*")) for r in rows] == [
         (s, m.name) for s in registry.STAGES for m in registry.methods(s)]
-    assert {r[1] for r in rows if r[0] == "velocity" and r[1].endswith("*")} == {"fused*"}
+    assert {r[1] for r in rows if r[0] == "velocity" and r[1].endswith("*")} == {"reference*"}
     bad = CliRunner().invoke(app, ["methods", "steering"])
     assert bad.exit_code == 2 and "stage 'steering'" in bad.output
 
@@ -158,7 +159,7 @@ def test_nested_tables_and_tuples(tmp_path):
     ("[pipeline.reference]\ngate = true\n", "expected a number"),
     ("[pipeline.refrence]\ngate = 1\n", "unknown key 'refrence'; allowed: force, normal"),
     ("[pipeline.reference]\ngait = 1\n", "[pipeline.reference] has unknown key 'gait'"),
-    ('[pipeline]\nvelocity = "kff"\n', "velocity method 'kff': use one of fused, reference"),
+    ('[pipeline]\nvelocity = "kff"\n', "velocity method 'kff': use one of reference, fused"),
     ('[pipeline.force_params]\nnormal = "static"\n', "normal = … in [pipeline]"),
     ("[pipeline.corner]\nq = [1, 2]\n", "pipeline.corner.q = [1, 2]: expected 3 values"),
     ("[pipeline.corner.high_slip]\naccel_window = 1.5\n", "expected an integer"),

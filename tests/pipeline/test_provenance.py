@@ -52,7 +52,7 @@ def test_estimate_attrs_are_the_cli_metadata(tmp_path: Path, short_log: pd.DataF
     assert api["vehicle_file"] == str(veh) and api["source"] == str(src)
     assert api["vehicle_sha256"] == hashlib.sha256(veh.read_bytes()).hexdigest()
     assert api["vestim_version"] == vestim.__version__
-    assert json.loads(api["config"])["velocity"] == "fused"
+    assert json.loads(api["config"])["velocity"] == "reference"
     assert api["torque_source"] == "measured" and json.loads(api["gaps"]) == []
     # an in-memory log and a built-in vehicle
     mem = vestim.estimate(short_log, "hashemi_suv").attrs
@@ -121,4 +121,4 @@ def test_parquet_schema_gives_every_column_its_unit(tmp_path: Path, short_log: p
     assert units["vxt_fl"] == "m/s" and units["bias_ax"] == "m/s²"
     assert units["cornering_stiffness"] == "1/rad" and units["gnss_latency"] == "s"
     assert all(units[c] == ch.unit_of(c) for c in units)
-    assert read_log(out).attrs["velocity"] == "fused"
+    assert read_log(out).attrs["velocity"] == "reference"

@@ -53,9 +53,10 @@ class PipelineConfig:
     Attributes:
         force: longitudinal force method (default "ukf").
         normal: elastic load transfer, "static" (default) or "dynamic".
-        velocity: CG velocity method (default "fused": the reference filter with the LuGre KF
-            corner estimates as extra measurements; "reference" the filter alone, "kinematic",
-            or a corner observer mapped to the CG by the fusion stage: "kf", "ukf", "lpv").
+        velocity: CG velocity method (default "reference": the reference filter; "fused" it
+            with the LuGre KF corner estimates as extra measurements in all-wheel slip,
+            "kinematic", or a corner observer mapped to the CG by the fusion stage: "kf",
+            "ukf", "lpv").
         fusion: how the four corner observers' estimates, mapped to the CG, become one
             (default "axle"; "adaptive", "opinion", which writes ``confidence_*``). Used by the
             corner methods and by "fused" for its corner measurement.

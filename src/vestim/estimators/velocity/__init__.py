@@ -3,12 +3,12 @@
 from vestim.estimators.registry import register
 
 register("velocity", "fused", "the reference filter with the LuGre KF corner estimates as "
-         "extra CG-speed measurements while at least three wheels slip", default=True,
+         "extra CG-speed measurements while at least three wheels slip",
          cite="001 Fig. 1, 000 eq. (16)–(23) (ours: the composition)",
          tables=("reference", "cornering", "radius", "corner", "fusion_params"),
          needs_wheel_speeds=False, corner="lugre_kf", outputs=("sigma_v", "bias_ax"))
 register("velocity", "reference", "ABS/ESC-style reference-speed filter: a_x, a_y integrated, "
-         "wheel speeds and linear-tire slip-angle bounds as measurements",
+         "wheel speeds and linear-tire slip-angle bounds as measurements", default=True,
          tables=("reference", "cornering", "radius"), needs_wheel_speeds=False,
          outputs=("sigma_v", "bias_ax"))
 register("velocity", "kinematic", "kinematic integration of the accelerometers, reset at "
