@@ -13,6 +13,7 @@ from hypothesis import strategies as st
 from vestim.filters.kalman import (
     _joseph,
     direct_update,
+    direct_update21,
     kalman_update,
     kalman_update_scalar,
     kalman_update_scalar3,
@@ -367,3 +368,23 @@ def test_direct_update_is_the_textbook_update_of_one_component(case):
     assert np.isnan(direct_update(xg, Pg, i, z, r, gate, np.empty((1, n))))
     np.testing.assert_array_equal(xg, x)
     np.testing.assert_array_equal(Pg, P)
+
+
+@settings(max_examples=100, deadline=None)
+@given(st.integers(0, 2**32 - 1))
+def test_direct_update21_is_the_textbook_update_of_a_block_diagonal_state(seed):
+    """direct_update21 is the textbook update with H = I of a 3-state whose P and S are
+    block diagonal (2 × 2 + 1; S = P + R, R of the same blocks), to round-off."""
+    rng = np.random.default_rng(seed)
+    P = np.zeros((3, 3))
+    R = np.zeros((3, 3))
+    P[:2, :2], R[:2, :2] = _spd(rng, 2), _spd(rng, 2)
+    P[2, 2], R[2, 2] = 10.0 ** rng.uniform(-1.5, 1.5, 2)
+    S = P + R
+    b, e = rng.standard_normal(3), rng.standard_normal(3)
+    xr, Pr = _textbook(b, P, np.eye(3), R, e)
+    out = direct_update21(b[0], b[1], b[2], P[0, 0], P[0, 1], P[1, 1], P[2, 2],
+                          S[0, 0], S[0, 1], S[1, 1], S[2, 2], e[0], e[1], e[2])
+    Pk = np.array([[out[3], out[4], 0.0], [out[4], out[5], 0.0], [0.0, 0.0, out[6]]])
+    np.testing.assert_allclose(out[:3], xr, rtol=1e-9, atol=1e-9 * np.abs(xr).max())
+    np.testing.assert_allclose(Pk, Pr, rtol=0, atol=1e-9 * np.abs(P).max())

@@ -26,7 +26,9 @@ arrays are passed in, as in :mod:`vestim.filters.linalg`):
   factorisation (S is a number); :func:`kalman_update_scalar3` is it for n = 3 on
   scalars, bit for bit. :func:`direct_update` is the scalar update of one component
   measured directly (h = e_i) with an innovation gate, in the form P − c cᵀ/s that the
-  velocity reference filter keeps (its wheel-speed, GNSS and tire pseudo-measurements).
+  velocity reference filter keeps (its wheel-speed, GNSS and tire pseudo-measurements);
+  :func:`direct_update21` that of a directly measured 3-state with a block-diagonal
+  (2 × 2 + 1) covariance on scalars (the stiffness particle filter's per-particle bias).
 
 * :func:`ukf_update` — the unscented update from sigma-point statistics (000
   eq. (11)–(12), 004 eq. (5)): K = P_xy P_yy⁻¹ by a Cholesky solve
@@ -405,3 +407,35 @@ def direct_update(x: np.ndarray, P: np.ndarray, i: int, z: float, r: float, gate
         for b in range(n):
             P[a, b] -= c[a] * c[b] / s
     return innov
+
+
+@njit(**_JIT)
+def direct_update21(b0: float, b1: float, b2: float, p00: float, p01: float, p11: float,
+                    p22: float, s00: float, s01: float, s11: float, s22: float, e0: float,
+                    e1: float, e2: float) -> tuple[float, float, float, float, float, float,
+                                                  float]:
+    """Kalman update of a 3-state b measured directly (H = I) whose covariance P is block
+    diagonal, a 2 × 2 block (p00, p01, p11) and p22, on scalars: the innovation ``e`` and its
+    covariance S (the same blocks: s00, s01, s11 and s22, P plus the measurement noise and
+    whatever else the caller adds). K = P S⁻¹, b ← b + K e and P ← P − K P (= P − P S⁻¹ P,
+    the optimal gain's form), S⁻¹ in closed form with one division for both blocks. The
+    stiffness particle filter's per-particle bias update (002 eq. (30)).
+
+    Returns:
+        (b0, b1, b2, p00, p01, p11, p22) after the update.
+    """
+    det = s00 * s11 - s01 * s01
+    inv_all = 1.0 / (det * s22)  # one division for the 2 × 2 block and the scalar
+    inv_det = s22 * inv_all
+    i00 = s11 * inv_det
+    i01 = -s01 * inv_det
+    i11 = s00 * inv_det
+    # K = P S⁻¹ (2 × 2 block)
+    k00 = p00 * i00 + p01 * i01
+    k01 = p00 * i01 + p01 * i11
+    k10 = p01 * i00 + p11 * i01
+    k11 = p01 * i01 + p11 * i11
+    k22 = p22 * det * inv_all
+    return (b0 + k00 * e0 + k01 * e1, b1 + k10 * e0 + k11 * e1, b2 + k22 * e2,
+            p00 - (k00 * p00 + k01 * p01), p01 - (k00 * p01 + k01 * p11),
+            p11 - (k10 * p01 + k11 * p11), p22 - k22 * p22)

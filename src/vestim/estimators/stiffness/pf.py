@@ -123,6 +123,7 @@ from vestim.estimators.stiffness.model import (
     YAW_RATE,
     terms,
 )
+from vestim.filters.kalman import direct_update21
 from vestim.filters.resampling import systematic_resample
 
 _JIT: dict[str, Any] = {"cache": True, "error_model": "numpy"}
@@ -357,33 +358,17 @@ def bias_kalman(b: MeasVec, pb: MeasCov, e: MeasVec, s: AccelCov, r: MeasCov,
     (we saw a_y bias estimates of 1.4 m/s² against a 0.05 m/s² prior). Adding the
     posterior state covariance P_x of the cloud, mapped through H = ∂[a_x, a_y, ψ̇]/∂x
     at the weighted mean, keeps the bias filter out of the state transient and
-    vanishes once the cloud has converged.
+    vanishes once the cloud has converged. The update itself is
+    :func:`vestim.filters.kalman.direct_update21` (H = I, block-diagonal P and S).
 
     Returns:
         (b_{k|k}, P_{k|k}).
     """
-    p00, p01, p11, prr = pb.xx, pb.xy, pb.yy, pb.rr
-    a00 = p00 + r.xx + s.xx + u.xx
-    a01 = p01 + r.xy + s.xy + u.xy
-    a11 = p11 + r.yy + s.yy + u.yy
-    det = a00 * a11 - a01 * a01
-    srr = prr + r.rr + u.rr
-    inv_all = 1.0 / (det * srr)     # one division for the 2 × 2 block and the gyro
-    inv_det = srr * inv_all
-    i00 = a11 * inv_det
-    i01 = -a01 * inv_det
-    i11 = a00 * inv_det
-    # K = P S⁻¹ (2 × 2)
-    k00 = p00 * i00 + p01 * i01
-    k01 = p00 * i01 + p01 * i11
-    k10 = p01 * i00 + p11 * i01
-    k11 = p01 * i01 + p11 * i11
-    krr = prr * det * inv_all
-    # P − K P (= P − P S⁻¹ P, symmetric)
-    return (MeasVec(b.ax + k00 * e.ax + k01 * e.ay, b.ay + k10 * e.ax + k11 * e.ay,
-                    b.yaw_rate + krr * e.yaw_rate),
-            MeasCov(p00 - (k00 * p00 + k01 * p01), p01 - (k00 * p01 + k01 * p11),
-                    p11 - (k10 * p01 + k11 * p11), prr - krr * prr))
+    b0, b1, b2, q00, q01, q11, q22 = direct_update21(
+        b.ax, b.ay, b.yaw_rate, pb.xx, pb.xy, pb.yy, pb.rr,
+        pb.xx + r.xx + s.xx + u.xx, pb.xy + r.xy + s.xy + u.xy, pb.yy + r.yy + s.yy + u.yy,
+        pb.rr + r.rr + u.rr, e.ax, e.ay, e.yaw_rate)
+    return MeasVec(b0, b1, b2), MeasCov(q00, q01, q11, q22)
 
 
 @njit(**_JIT)
