@@ -63,7 +63,7 @@ def configure() -> Path:
 def notice_text() -> str:
     """What :func:`compile_notice` says."""
     return ("compiling vestim's kernels for this code path (once per machine and code path, "
-            f"about 5-60 s); later runs load them from {cache_dir()}")
+            f"about 1-3 min the first time); later runs load them from {cache_dir()}")
 
 
 class _CompileWatch:
