@@ -6,7 +6,7 @@ On the high-slip maneuvers (launch on ice without traction control, split-μ lau
 acceleration in a turn on a slippery road, wet lane change, snow lane change), both
 tire plants, RWD, FWD and AWD, seed 1: CG v_x NRMS and the worst corner's v_x NRMS
 (000's definition, %) of the corner Kalman observer (``--velocity kf``) and of the
-default ``fused`` pipeline, with each fusion of the corner estimates (``--fusion axle |
+``fused`` pipeline, with each fusion of the corner estimates (``--fusion axle |
 adaptive | opinion``). The estimators see the log without its ``ref_`` columns.
 """
 

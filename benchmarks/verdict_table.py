@@ -1,8 +1,8 @@
 """The papers' velocity methods against the reference filter on independent data (issue 31's
 verdict table): CG v_x NRMS (%) per crossplant log and per campaign maneuver family, for the
-default (``fused``), the reference filter alone, the corner observers of 000/001 (``kf``,
-``ukf``, ``lpv``, fused to the CG by 001's axle weights) and the corner KF with the other
-fusions (``adaptive``, 003's ``opinion``).
+default (the reference filter, ``reference``), the fused filter (``fused``), the corner
+observers of 000/001 (``kf``, ``ukf``, ``lpv``, fused to the CG by 001's axle weights) and
+the corner KF with the other fusions (``adaptive``, 003's ``opinion``).
 
 usage: python benchmarks/verdict_table.py [--jobs 2] [--rerun]
 
@@ -22,8 +22,8 @@ import numpy as np
 import lateral_study
 
 CONFIGS: dict[str, list[str]] = {
-    "fused": [],
-    "reference": ["velocity=reference"],
+    "reference": [],
+    "fused": ["velocity=fused"],
     "kf": ["velocity=kf"],
     "ukf": ["velocity=ukf"],
     "lpv": ["velocity=lpv"],
@@ -59,7 +59,7 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--rerun", action="store_true")
     a = ap.parse_args(argv)
     scores = {name: _scores(name, a.jobs, a.rerun) for name in CONFIGS}
-    logs = sorted(s for s in scores["fused"] if s.startswith(("x", "s")))
+    logs = sorted(s for s in scores["reference"] if s.startswith(("x", "s")))
     groups: dict[str, list[str]] = {}
     for sid in logs:
         family = sid if sid.startswith("x") else "campaign " + sid.split("_", 2)[2]

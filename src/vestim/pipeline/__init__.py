@@ -273,7 +273,7 @@ class Pipeline:
         if not wheels and velocity.needs_wheel_speeds:
             raise PipelineConfigError(
                 f"velocity method {cfg.velocity!r} needs the wheel speeds omega_fl … omega_rr, "
-                "which the log does not have: use velocity 'reference' or 'fused' (the default)")
+                "which the log does not have: use velocity 'reference' (the default) or 'fused'")
         corners = velocity.corner is not None and wheels
         force = registry.lookup("force", cfg.force)
         fusion = registry.lookup("fusion", cfg.fusion)

@@ -964,7 +964,7 @@ def _reference_rows(prm: ReferenceKernelParams, st: ReferenceState, start: int, 
                 res = np.nan
             else:
                 res = direct_update(x, P, VX, wheel_v[i],
-                                     r_w + slip_part * slip_part * inflate_w, np.inf, work)
+                                    r_w + slip_part * slip_part * inflate_w, np.inf, work)
             out_trust[k, i] = np.inf if np.isnan(res) else sig
             if not np.isnan(res):
                 accepted += 1
@@ -988,7 +988,7 @@ def _reference_rows(prm: ReferenceKernelParams, st: ReferenceState, start: int, 
                 # A corner observer's error persists like a wheel's slip error: same inflation.
                 n_extra += 1
                 res = direct_update(x, P, VX, extra_v[k, j], extra_var[k, j] * inflate_w,
-                                     prm.gate, work)
+                                    prm.gate, work)
                 if np.isnan(res):
                     innov_extra = extra_v[k, j] - x[VX]
                 else:
